@@ -1,0 +1,114 @@
+//! Slot arenas with deterministic slot recycling.
+//!
+//! Freed slots are reused lowest index first. This keeps ids small and makes
+//! them a pure function of the operation sequence (thesis 003 §4.1 recycles
+//! deleted ids the same way), which the byte-identical output guarantee needs.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+#[derive(Clone, Debug)]
+pub(crate) struct Arena<T> {
+    slots: Vec<Option<T>>,
+    free: BinaryHeap<Reverse<u32>>,
+    live: usize,
+}
+
+impl<T> Default for Arena<T> {
+    fn default() -> Self {
+        Self {
+            slots: Vec::new(),
+            free: BinaryHeap::new(),
+            live: 0,
+        }
+    }
+}
+
+impl<T> Arena<T> {
+    /// Stores `value` in the lowest free slot (or a new one) and returns its index.
+    pub fn insert(&mut self, value: T) -> u32 {
+        self.live += 1;
+        if let Some(Reverse(index)) = self.free.pop() {
+            self.slots[index as usize] = Some(value);
+            index
+        } else {
+            let index = u32::try_from(self.slots.len()).expect("arena exceeds u32 slots");
+            self.slots.push(Some(value));
+            index
+        }
+    }
+
+    pub fn remove(&mut self, index: u32) -> Option<T> {
+        let value = self.slots.get_mut(index as usize)?.take()?;
+        self.free.push(Reverse(index));
+        self.live -= 1;
+        Some(value)
+    }
+
+    #[inline]
+    pub fn get(&self, index: u32) -> Option<&T> {
+        self.slots.get(index as usize)?.as_ref()
+    }
+
+    #[inline]
+    pub fn get_mut(&mut self, index: u32) -> Option<&mut T> {
+        self.slots.get_mut(index as usize)?.as_mut()
+    }
+
+    #[inline]
+    pub fn contains(&self, index: u32) -> bool {
+        self.get(index).is_some()
+    }
+
+    /// Number of live elements.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.live
+    }
+
+    /// Number of slots, live or free: every live index is below this.
+    #[inline]
+    pub fn capacity(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// Live elements in index order.
+    pub fn iter(&self) -> impl Iterator<Item = (u32, &T)> + '_ {
+        self.slots
+            .iter()
+            .enumerate()
+            .filter_map(|(i, slot)| slot.as_ref().map(|value| (i as u32, value)))
+    }
+
+    /// Indices of free slots, for the validator.
+    pub fn free_slots(&self) -> impl Iterator<Item = u32> + '_ {
+        self.free.iter().map(|Reverse(i)| *i)
+    }
+
+    pub fn reserve(&mut self, additional: usize) {
+        self.slots.reserve(additional);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recycles_lowest_free_slot_first() {
+        let mut arena = Arena::default();
+        for i in 0..5 {
+            assert_eq!(arena.insert(i), i);
+        }
+        arena.remove(3);
+        arena.remove(1);
+        assert_eq!(arena.len(), 3);
+        assert_eq!(arena.insert(10), 1);
+        assert_eq!(arena.insert(11), 3);
+        assert_eq!(arena.insert(12), 5);
+        assert_eq!(arena.get(1), Some(&10));
+        assert!(arena.remove(9).is_none());
+        assert!(arena.remove(1).is_some());
+        assert!(arena.remove(1).is_none(), "double free must be refused");
+    }
+}

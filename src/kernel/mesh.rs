@@ -1,0 +1,495 @@
+//! The mesh structure and its read-only adjacency queries.
+//!
+//! Four arenas hold the elements. Adjacency follows BMesh (seed 000 §4.3):
+//! - the *disk cycle*: the edges around a vertex, a doubly linked cycle
+//!   threaded through the edges (each edge has one link pair per endpoint);
+//! - the *radial cycle*: the loops around an edge, one per face using it;
+//! - the *boundary cycle*: the loops of a face, in winding order.
+//!
+//! A loop `l` belongs to face `l.face`, starts at vertex `l.vert` and runs
+//! along `l.edge` to the next loop's vertex.
+//!
+//! Adjacency fields are private to the kernel: only [`super::euler`] writes
+//! them. Positions and attributes are geometry, writable by anyone.
+
+use glam::DVec3;
+
+use super::arena::Arena;
+use super::attrs::{AttrValue, Attributes, LayerKind};
+use super::ids::{Domain, EdgeId, FaceId, LoopId, VertId};
+use super::polygon;
+
+#[derive(Clone, Debug)]
+pub(crate) struct Vert {
+    pub(crate) position: DVec3,
+    /// Any edge of the disk cycle; `None` for an isolated vertex.
+    pub(crate) edge: Option<EdgeId>,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(crate) struct DiskLink {
+    pub(crate) prev: EdgeId,
+    pub(crate) next: EdgeId,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Edge {
+    pub(crate) verts: [VertId; 2],
+    /// `disk[i]` links this edge into the disk cycle of `verts[i]`.
+    pub(crate) disk: [DiskLink; 2],
+    /// Any loop of the radial cycle; `None` for a wire edge.
+    pub(crate) first_loop: Option<LoopId>,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Loop {
+    pub(crate) vert: VertId,
+    pub(crate) edge: EdgeId,
+    pub(crate) face: FaceId,
+    pub(crate) next: LoopId,
+    pub(crate) prev: LoopId,
+    pub(crate) radial_next: LoopId,
+    pub(crate) radial_prev: LoopId,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Face {
+    pub(crate) first_loop: LoopId,
+    pub(crate) len: u32,
+    pub(crate) normal: DVec3,
+}
+
+/// A non-manifold polygon mesh: vertices, edges, loops and faces.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub(crate) verts: Arena<Vert>,
+    pub(crate) edges: Arena<Edge>,
+    pub(crate) loops: Arena<Loop>,
+    pub(crate) faces: Arena<Face>,
+    pub(crate) attributes: Attributes,
+}
+
+impl Edge {
+    /// Which end (0 or 1) of the edge `v` is. Callers guarantee `v` is an end.
+    #[inline]
+    pub(crate) fn side(&self, v: VertId) -> usize {
+        debug_assert!(self.verts.contains(&v));
+        usize::from(self.verts[0] != v)
+    }
+}
+
+impl Mesh {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    // ---- counts and existence ----
+
+    pub fn vert_count(&self) -> usize {
+        self.verts.len()
+    }
+    pub fn edge_count(&self) -> usize {
+        self.edges.len()
+    }
+    pub fn face_count(&self) -> usize {
+        self.faces.len()
+    }
+    pub fn loop_count(&self) -> usize {
+        self.loops.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.verts.len() == 0
+    }
+    /// Upper bound (exclusive) of vertex slot indices, for dense side tables.
+    pub fn vert_capacity(&self) -> usize {
+        self.verts.capacity()
+    }
+    pub fn edge_capacity(&self) -> usize {
+        self.edges.capacity()
+    }
+    pub fn face_capacity(&self) -> usize {
+        self.faces.capacity()
+    }
+
+    pub fn contains_vert(&self, v: VertId) -> bool {
+        self.verts.contains(v.0)
+    }
+    pub fn contains_edge(&self, e: EdgeId) -> bool {
+        self.edges.contains(e.0)
+    }
+    pub fn contains_face(&self, f: FaceId) -> bool {
+        self.faces.contains(f.0)
+    }
+
+    // ---- element iteration, always in id order ----
+
+    pub fn vert_ids(&self) -> impl Iterator<Item = VertId> + '_ {
+        self.verts.iter().map(|(i, _)| VertId(i))
+    }
+    pub fn edge_ids(&self) -> impl Iterator<Item = EdgeId> + '_ {
+        self.edges.iter().map(|(i, _)| EdgeId(i))
+    }
+    pub fn face_ids(&self) -> impl Iterator<Item = FaceId> + '_ {
+        self.faces.iter().map(|(i, _)| FaceId(i))
+    }
+
+    // ---- internal accessors (panic on dead ids: callers check first) ----
+
+    #[inline]
+    pub(crate) fn vert(&self, v: VertId) -> &Vert {
+        self.verts.get(v.0).expect("dead vertex id")
+    }
+    #[inline]
+    pub(crate) fn edge(&self, e: EdgeId) -> &Edge {
+        self.edges.get(e.0).expect("dead edge id")
+    }
+    #[inline]
+    pub(crate) fn lp(&self, l: LoopId) -> &Loop {
+        self.loops.get(l.0).expect("dead loop id")
+    }
+    #[inline]
+    pub(crate) fn face(&self, f: FaceId) -> &Face {
+        self.faces.get(f.0).expect("dead face id")
+    }
+
+    // ---- geometry ----
+
+    /// Position of a live vertex. Panics on a dead id.
+    #[inline]
+    pub fn position(&self, v: VertId) -> DVec3 {
+        self.vert(v).position
+    }
+
+    /// Moves a vertex. Geometry only: adjacency is untouched. Stored face
+    /// normals are refreshed by [`Mesh::refresh_normals`].
+    #[inline]
+    pub fn set_position(&mut self, v: VertId, position: DVec3) {
+        self.verts.get_mut(v.0).expect("dead vertex id").position = position;
+    }
+
+    /// Stored unit normal of a face (Newell normal at creation or last refresh;
+    /// zero for a degenerate face).
+    pub fn face_normal(&self, f: FaceId) -> DVec3 {
+        self.face(f).normal
+    }
+
+    /// Recomputes the stored normal of `f` from its current vertex positions.
+    pub fn refresh_normal(&mut self, f: FaceId) {
+        let normal = self.compute_face_normal(f);
+        self.faces.get_mut(f.0).expect("dead face id").normal = normal;
+    }
+
+    /// Recomputes every stored face normal.
+    pub fn refresh_normals(&mut self) {
+        let ids: Vec<FaceId> = self.face_ids().collect();
+        for f in ids {
+            self.refresh_normal(f);
+        }
+    }
+
+    /// Unit Newell normal from current positions; zero when degenerate.
+    pub fn compute_face_normal(&self, f: FaceId) -> DVec3 {
+        let points = self.face_positions(f);
+        polygon::unit_normal(&points).unwrap_or(DVec3::ZERO)
+    }
+
+    pub fn face_positions(&self, f: FaceId) -> Vec<DVec3> {
+        self.face_verts(f).map(|v| self.position(v)).collect()
+    }
+
+    /// Vertex average of a face.
+    pub fn face_center(&self, f: FaceId) -> DVec3 {
+        let mut sum = DVec3::ZERO;
+        let mut n = 0.0;
+        for v in self.face_verts(f) {
+            sum += self.position(v);
+            n += 1.0;
+        }
+        sum / n
+    }
+
+    pub fn face_area(&self, f: FaceId) -> f64 {
+        polygon::area(&self.face_positions(f))
+    }
+
+    pub fn edge_length(&self, e: EdgeId) -> f64 {
+        let [a, b] = self.edge(e).verts;
+        self.position(a).distance(self.position(b))
+    }
+
+    // ---- adjacency queries ----
+
+    /// The two vertices of an edge, in creation order.
+    #[inline]
+    pub fn edge_verts(&self, e: EdgeId) -> [VertId; 2] {
+        self.edge(e).verts
+    }
+
+    /// The end of `e` that is not `v`.
+    #[inline]
+    pub fn edge_other_vert(&self, e: EdgeId, v: VertId) -> VertId {
+        let [a, b] = self.edge(e).verts;
+        if a == v {
+            b
+        } else {
+            a
+        }
+    }
+
+    /// Edges around a vertex (its disk cycle).
+    pub fn vert_edges(&self, v: VertId) -> DiskIter<'_> {
+        let start = self.vert(v).edge;
+        DiskIter {
+            mesh: self,
+            vert: v,
+            start,
+            next: start,
+        }
+    }
+
+    pub fn vert_degree(&self, v: VertId) -> usize {
+        self.vert_edges(v).count()
+    }
+
+    /// Neighbouring vertices (across each edge), in disk order.
+    pub fn vert_neighbors(&self, v: VertId) -> impl Iterator<Item = VertId> + '_ {
+        self.vert_edges(v).map(move |e| self.edge_other_vert(e, v))
+    }
+
+    /// Faces around a vertex, each once.
+    pub fn vert_faces(&self, v: VertId) -> impl Iterator<Item = FaceId> + '_ {
+        // Each face uses `v` in exactly one loop (no repeated vertices), and
+        // that loop starts at `v`: collecting those loops lists each face once.
+        self.vert_edges(v).flat_map(move |e| {
+            self.edge_loops(e)
+                .filter(move |&l| self.lp(l).vert == v)
+                .map(move |l| self.lp(l).face)
+        })
+    }
+
+    /// Loops around an edge (its radial cycle).
+    pub fn edge_loops(&self, e: EdgeId) -> RadialIter<'_> {
+        let start = self.edge(e).first_loop;
+        RadialIter {
+            mesh: self,
+            start,
+            next: start,
+        }
+    }
+
+    /// Faces using an edge (a face appears once: it cannot use an edge twice).
+    pub fn edge_faces(&self, e: EdgeId) -> impl Iterator<Item = FaceId> + '_ {
+        self.edge_loops(e).map(move |l| self.lp(l).face)
+    }
+
+    pub fn edge_face_count(&self, e: EdgeId) -> usize {
+        self.edge_loops(e).count()
+    }
+
+    pub fn is_wire_edge(&self, e: EdgeId) -> bool {
+        self.edge(e).first_loop.is_none()
+    }
+
+    /// Loops of a face in winding order, starting at its first loop.
+    pub fn face_loops(&self, f: FaceId) -> FaceLoopIter<'_> {
+        let face = self.face(f);
+        FaceLoopIter {
+            mesh: self,
+            next: face.first_loop,
+            remaining: face.len,
+        }
+    }
+
+    /// Vertices of a face in winding order.
+    pub fn face_verts(&self, f: FaceId) -> impl Iterator<Item = VertId> + '_ {
+        self.face_loops(f).map(move |l| self.lp(l).vert)
+    }
+
+    /// Edges of a face in winding order (edge i runs from vertex i to i+1).
+    pub fn face_edges(&self, f: FaceId) -> impl Iterator<Item = EdgeId> + '_ {
+        self.face_loops(f).map(move |l| self.lp(l).edge)
+    }
+
+    pub fn face_len(&self, f: FaceId) -> usize {
+        self.face(f).len as usize
+    }
+
+    /// Faces sharing at least one edge with `f`, ascending, without `f`.
+    pub fn face_edge_neighbors(&self, f: FaceId) -> Vec<FaceId> {
+        let mut out: Vec<FaceId> = self
+            .face_edges(f)
+            .flat_map(|e| self.edge_faces(e))
+            .filter(|&g| g != f)
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// Faces sharing at least one vertex with `f`, ascending, without `f`
+    /// (thesis 003 counts these: 8 for an interior face of a grid).
+    pub fn face_vert_neighbors(&self, f: FaceId) -> Vec<FaceId> {
+        let mut out: Vec<FaceId> = self
+            .face_verts(f)
+            .flat_map(|v| self.vert_faces(v))
+            .filter(|&g| g != f)
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// The loop of face `f` that starts at vertex `v`.
+    pub(crate) fn face_loop_at(&self, f: FaceId, v: VertId) -> Option<LoopId> {
+        self.face_loops(f).find(|&l| self.lp(l).vert == v)
+    }
+
+    pub fn face_contains_vert(&self, f: FaceId, v: VertId) -> bool {
+        self.face_loop_at(f, v).is_some()
+    }
+
+    /// The edge between `a` and `b`, if any. Cost: degree of `a`.
+    pub fn find_edge(&self, a: VertId, b: VertId) -> Option<EdgeId> {
+        self.vert_edges(a)
+            .find(|&e| self.edge_other_vert(e, a) == b)
+    }
+
+    /// A face whose boundary uses exactly these vertices in this cyclic order
+    /// (either direction), if one exists.
+    pub fn find_face(&self, verts: &[VertId]) -> Option<FaceId> {
+        if verts.len() < 3 {
+            return None;
+        }
+        let e = self.find_edge(verts[0], verts[1])?;
+        let mut key: Vec<VertId> = verts.to_vec();
+        key.sort_unstable();
+        self.edge_faces(e).find(|&f| {
+            if self.face_len(f) != verts.len() {
+                return false;
+            }
+            let mut fv: Vec<VertId> = self.face_verts(f).collect();
+            fv.sort_unstable();
+            fv == key
+        })
+    }
+
+    // ---- attributes ----
+
+    pub fn attributes(&self) -> &Attributes {
+        &self.attributes
+    }
+
+    /// Adds a named layer for `domain` with `default` for every element
+    /// (existing ones included). Adding an existing layer of the same kind is a no-op.
+    pub fn add_layer(
+        &mut self,
+        name: &str,
+        domain: Domain,
+        default: AttrValue,
+    ) -> Result<(), LayerKind> {
+        let capacity = match domain {
+            Domain::Vert => self.verts.capacity(),
+            Domain::Edge => self.edges.capacity(),
+            Domain::Face => self.faces.capacity(),
+        };
+        self.attributes
+            .add_layer(name, domain, default, capacity)
+            .map(|_| ())
+    }
+
+    pub fn remove_layer(&mut self, name: &str, domain: Domain) -> bool {
+        self.attributes.remove_layer(name, domain)
+    }
+
+    /// Sets one element's value in a named layer. `None` if no such layer;
+    /// `Some(Err(kind))` if the value is of another kind than the layer.
+    pub fn set_attr(
+        &mut self,
+        name: &str,
+        domain: Domain,
+        index: usize,
+        value: AttrValue,
+    ) -> Option<Result<(), LayerKind>> {
+        self.attributes.set(name, domain, index, value)
+    }
+
+    pub fn attr(&self, name: &str, domain: Domain, index: usize) -> Option<AttrValue> {
+        self.attributes.layer(name, domain).map(|l| l.get(index))
+    }
+
+    /// Copies every vertex attribute of `from` to `to`.
+    pub fn copy_vert_attrs(&mut self, from: VertId, to: VertId) {
+        self.attributes.copy(Domain::Vert, from.index(), to.index());
+    }
+    pub fn copy_edge_attrs(&mut self, from: EdgeId, to: EdgeId) {
+        self.attributes.copy(Domain::Edge, from.index(), to.index());
+    }
+    pub fn copy_face_attrs(&mut self, from: FaceId, to: FaceId) {
+        self.attributes.copy(Domain::Face, from.index(), to.index());
+    }
+    /// Sets `to`'s vertex attributes to the blend of `a` and `b` at `t`.
+    pub fn interpolate_vert_attrs(&mut self, a: VertId, b: VertId, t: f64, to: VertId) {
+        self.attributes
+            .interpolate(Domain::Vert, a.index(), b.index(), t, to.index());
+    }
+}
+
+/// Iterator over the disk cycle of a vertex.
+pub struct DiskIter<'a> {
+    mesh: &'a Mesh,
+    vert: VertId,
+    start: Option<EdgeId>,
+    next: Option<EdgeId>,
+}
+
+impl Iterator for DiskIter<'_> {
+    type Item = EdgeId;
+    fn next(&mut self) -> Option<EdgeId> {
+        let current = self.next?;
+        let edge = self.mesh.edge(current);
+        let following = edge.disk[edge.side(self.vert)].next;
+        self.next = (Some(following) != self.start).then_some(following);
+        Some(current)
+    }
+}
+
+/// Iterator over the radial cycle of an edge.
+pub struct RadialIter<'a> {
+    mesh: &'a Mesh,
+    start: Option<LoopId>,
+    next: Option<LoopId>,
+}
+
+impl Iterator for RadialIter<'_> {
+    type Item = LoopId;
+    fn next(&mut self) -> Option<LoopId> {
+        let current = self.next?;
+        let following = self.mesh.lp(current).radial_next;
+        self.next = (Some(following) != self.start).then_some(following);
+        Some(current)
+    }
+}
+
+/// Iterator over the boundary cycle of a face.
+pub struct FaceLoopIter<'a> {
+    mesh: &'a Mesh,
+    next: LoopId,
+    remaining: u32,
+}
+
+impl Iterator for FaceLoopIter<'_> {
+    type Item = LoopId;
+    fn next(&mut self) -> Option<LoopId> {
+        if self.remaining == 0 {
+            return None;
+        }
+        self.remaining -= 1;
+        let current = self.next;
+        self.next = self.mesh.lp(current).next;
+        Some(current)
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.remaining as usize, Some(self.remaining as usize))
+    }
+}

@@ -1,0 +1,30 @@
+//! The polygon kernel: a BMesh-like non-manifold mesh (seed 000).
+//!
+//! - [`Mesh`] stores vertices, edges, loops and faces in index-based arenas
+//!   ([`ids`]) with disk, radial and boundary cycles ([`mesh`]).
+//! - [`euler`] holds the Euler operators, the only code that writes
+//!   adjacency; [`Mesh::validate`] checks every invariant.
+//! - [`attrs`] holds named per-element attribute layers.
+//! - [`ops`] holds the high-level modelling operators built on Euler
+//!   operators, each returning a typed result naming what it made.
+//! - [`polygon`] holds pure polygon geometry (normals, triangulation).
+//!
+//! The kernel knows nothing of rule files, grammars or file formats.
+
+mod arena;
+pub mod attrs;
+pub mod euler;
+pub mod ids;
+pub mod mesh;
+pub mod ops;
+pub mod polygon;
+pub mod validate;
+
+pub use attrs::{AttrValue, LayerKind};
+pub use euler::{JoinMap, KernelError};
+pub use ids::{Domain, EdgeId, FaceId, LoopId, VertId};
+pub use mesh::Mesh;
+pub use validate::ValidationError;
+
+#[cfg(test)]
+mod euler_tests;

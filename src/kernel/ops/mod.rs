@@ -1,0 +1,105 @@
+//! High-level modelling operators (seed 000 §3.3, §4.5), built only from
+//! Euler operators and geometry writes.
+//!
+//! Every operator takes the elements it works on and returns a
+//! [`Selection`] naming what it *created* (the seed's `ExtrudeFacesResult`
+//! idea), so a caller — or a rule step — can chain on "what the previous
+//! step made" without searching. Inputs are processed in ascending id order
+//! whatever order they are given in, so results never depend on it.
+//!
+//! | module | operators |
+//! |---|---|
+//! | [`create`] | vertex, circle, grid, cube, UV sphere, cylinder / cone |
+//! | [`transform`] | translate, rotate, scale, affine |
+//! | [`select`] | from verts / edges / faces, region extend / reduce |
+//! | [`delete`] | delete (all / faces / faces and edges), duplicate, dissolve edges |
+//! | [`merge`] | merge by distance, mirror |
+//! | [`extrude`] | extrude verts, edges, faces (individual), face region |
+//! | [`inset`] | inset faces (individual), inset region |
+//! | [`split`] | split edges (cuts, ratios) |
+//! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
+
+use thiserror::Error;
+
+use super::euler::KernelError;
+use super::ids::{EdgeId, FaceId, VertId};
+
+pub mod create;
+pub mod delete;
+pub mod extrude;
+pub mod faces;
+pub mod inset;
+pub mod merge;
+pub mod select;
+pub mod split;
+pub mod transform;
+
+/// A set of elements: sorted ascending, no duplicates.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Selection {
+    pub verts: Vec<VertId>,
+    pub edges: Vec<EdgeId>,
+    pub faces: Vec<FaceId>,
+}
+
+impl Selection {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Sorts and deduplicates every list (the canonical form).
+    pub fn normalize(&mut self) {
+        self.verts.sort_unstable();
+        self.verts.dedup();
+        self.edges.sort_unstable();
+        self.edges.dedup();
+        self.faces.sort_unstable();
+        self.faces.dedup();
+    }
+
+    /// Builds a canonical selection from unordered lists.
+    pub fn from_parts(verts: Vec<VertId>, edges: Vec<EdgeId>, faces: Vec<FaceId>) -> Self {
+        let mut s = Self { verts, edges, faces };
+        s.normalize();
+        s
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.verts.is_empty() && self.edges.is_empty() && self.faces.is_empty()
+    }
+
+    /// Adds everything of `other`, keeping the canonical form.
+    pub fn extend(&mut self, other: &Selection) {
+        self.verts.extend_from_slice(&other.verts);
+        self.edges.extend_from_slice(&other.edges);
+        self.faces.extend_from_slice(&other.faces);
+        self.normalize();
+    }
+}
+
+/// Why a high-level operator failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum OpError {
+    #[error(transparent)]
+    Kernel(#[from] KernelError),
+    #[error("invalid parameter `{name}`: {reason}")]
+    Parameter { name: &'static str, reason: String },
+}
+
+impl OpError {
+    pub(crate) fn parameter(name: &'static str, reason: impl Into<String>) -> Self {
+        OpError::Parameter {
+            name,
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Sorted, deduplicated copy of an id list: operators iterate inputs in id
+/// order so their results do not depend on the order the caller gave.
+pub(crate) fn canonical<T: Ord + Copy>(ids: &[T]) -> Vec<T> {
+    let mut v = ids.to_vec();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
