@@ -2,6 +2,10 @@
 //!
 //! Data flows one way: rule file → [`rules`] (AST, compiled program) →
 //! [`grammar`] (the engine, on the [`kernel`]) → [`io`] (writers).
-//! See ARCHITECTURE.md for the map.
+//! [`cli`] is the command line over all of them. See ARCHITECTURE.md.
 
+pub mod cli;
+pub mod grammar;
+pub mod io;
 pub mod kernel;
+pub mod rules;

@@ -1,1 +1,5 @@
-fn main() {}
+//! The `graftal` binary: everything lives in the library; see `cli`.
+
+fn main() -> std::process::ExitCode {
+    graftal::cli::main()
+}

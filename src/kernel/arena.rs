@@ -84,10 +84,6 @@ impl<T> Arena<T> {
     pub fn free_slots(&self) -> impl Iterator<Item = u32> + '_ {
         self.free.iter().map(|Reverse(i)| *i)
     }
-
-    pub fn reserve(&mut self, additional: usize) {
-        self.slots.reserve(additional);
-    }
 }
 
 #[cfg(test)]

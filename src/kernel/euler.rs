@@ -319,7 +319,10 @@ impl Mesh {
             first.get_or_insert(l);
             prev = Some(l);
         }
-        let (first, last) = (first.expect("ring not empty"), prev.expect("ring not empty"));
+        let (first, last) = (
+            first.expect("ring not empty"),
+            prev.expect("ring not empty"),
+        );
         self.loop_mut(last).next = first;
         self.loop_mut(first).prev = last;
         self.face_mut(f).first_loop = first;
@@ -464,7 +467,9 @@ impl Mesh {
 
         let loops: Vec<LoopId> = self.edge_loops(e).collect();
         for l in loops {
-            let Loop { vert, face, next, .. } = *self.lp(l);
+            let Loop {
+                vert, face, next, ..
+            } = *self.lp(l);
             let inserted = if vert == v0 {
                 // v0 -> v1 becomes v0 -(e)-> w -(e2)-> v1.
                 let n = self.new_loop(w, e2, face);
@@ -509,7 +514,10 @@ impl Mesh {
             .collect();
         seen.sort_unstable();
         if let Some(w) = seen.windows(2).find(|w| w[0] == w[1]) {
-            return Err(KernelError::JoinRepeatsVertex { edge: e, vert: w[0] });
+            return Err(KernelError::JoinRepeatsVertex {
+                edge: e,
+                vert: w[0],
+            });
         }
         let (keep_index, kill_index) = if faces[0] < faces[1] { (0, 1) } else { (1, 0) };
         let (keep, kill) = (faces[keep_index], faces[kill_index]);
@@ -559,7 +567,10 @@ impl Mesh {
         self.check_edge(e)?;
         let [a, b] = self.edge_verts(e);
         if keep != a && keep != b {
-            return Err(KernelError::NotAnEnd { vert: keep, edge: e });
+            return Err(KernelError::NotAnEnd {
+                vert: keep,
+                edge: e,
+            });
         }
         if !position.is_finite() {
             return Err(KernelError::NonFinite);

@@ -41,7 +41,10 @@ fn make_edge_rejects_duplicates_self_loops_and_dead_vertices() {
     let e = m.make_edge(a, b).unwrap();
     assert_eq!(m.make_edge(b, a), Err(KernelError::EdgeExists(b, a, e)));
     assert_eq!(m.make_edge(a, a), Err(KernelError::SameVertex(a)));
-    assert!(matches!(m.make_edge(a, VertId(9)), Err(KernelError::Dead { .. })));
+    assert!(matches!(
+        m.make_edge(a, VertId(9)),
+        Err(KernelError::Dead { .. })
+    ));
     assert_eq!(m.edge_count(), 1);
     assert_eq!(m.vert_degree(a), 1);
     m.validate().unwrap();
@@ -50,13 +53,20 @@ fn make_edge_rejects_duplicates_self_loops_and_dead_vertices() {
 #[test]
 fn make_edge_vert_copies_attributes_of_its_source() {
     let mut m = Mesh::new();
-    m.add_layer("radius", Domain::Vert, AttrValue::Scalar(1.0)).unwrap();
+    m.add_layer("radius", Domain::Vert, AttrValue::Scalar(1.0))
+        .unwrap();
     let a = m.make_vert(DVec3::ZERO);
     m.set_attr("radius", Domain::Vert, a.index(), AttrValue::Scalar(0.25));
     let (e, b) = m.make_edge_vert(a, DVec3::Y).unwrap();
     assert_eq!(m.edge_verts(e), [a, b]);
-    assert_eq!(m.attr("radius", Domain::Vert, b.index()), Some(AttrValue::Scalar(0.25)));
-    assert_eq!(m.make_edge_vert(a, v3(f64::NAN, 0., 0.)), Err(KernelError::NonFinite));
+    assert_eq!(
+        m.attr("radius", Domain::Vert, b.index()),
+        Some(AttrValue::Scalar(0.25))
+    );
+    assert_eq!(
+        m.make_edge_vert(a, v3(f64::NAN, 0., 0.)),
+        Err(KernelError::NonFinite)
+    );
     m.validate().unwrap();
 }
 
@@ -73,8 +83,14 @@ fn make_face_builds_missing_edges_and_checks_its_ring() {
     assert_eq!(m.find_face(&[v[4], v[3], v[0], v[1]]), Some(f0));
 
     let mut m2 = m.clone();
-    assert_eq!(m2.make_face(&[v[0], v[1]]), Err(KernelError::TooFewVertices(2)));
-    assert_eq!(m2.make_face(&[v[0], v[1], v[0]]), Err(KernelError::RepeatedVertex(v[0])));
+    assert_eq!(
+        m2.make_face(&[v[0], v[1]]),
+        Err(KernelError::TooFewVertices(2))
+    );
+    assert_eq!(
+        m2.make_face(&[v[0], v[1], v[0]]),
+        Err(KernelError::RepeatedVertex(v[0]))
+    );
     assert_eq!(m2.edge_count(), 7, "a refused face leaves no edges behind");
     m2.validate().unwrap();
 }
@@ -101,7 +117,10 @@ fn make_face_from_edges_orders_the_ring() {
     assert_eq!(ring(&m, f), vec![a, b, c]);
     let d = m.make_vert(DVec3::Z);
     let e3 = m.make_edge(c, d).unwrap();
-    assert_eq!(m.make_face_from_edges(&[e0, e1, e3]), Err(KernelError::NotARing(e3)));
+    assert_eq!(
+        m.make_face_from_edges(&[e0, e1, e3]),
+        Err(KernelError::NotARing(e3))
+    );
     m.validate().unwrap();
 }
 
@@ -120,7 +139,10 @@ fn split_face_makes_two_faces_sharing_the_new_edge() {
     );
     assert_eq!(
         m.split_face(f0, v[0], v[5]),
-        Err(KernelError::NotInFace { vert: v[5], face: f0 })
+        Err(KernelError::NotInFace {
+            vert: v[5],
+            face: f0
+        })
     );
     m.validate().unwrap();
 }
@@ -128,13 +150,17 @@ fn split_face_makes_two_faces_sharing_the_new_edge() {
 #[test]
 fn split_edge_inserts_the_vertex_in_every_face() {
     let (mut m, v, f0, f1) = two_quads();
-    m.add_layer("radius", Domain::Vert, AttrValue::Scalar(0.0)).unwrap();
+    m.add_layer("radius", Domain::Vert, AttrValue::Scalar(0.0))
+        .unwrap();
     m.set_attr("radius", Domain::Vert, v[1].index(), AttrValue::Scalar(2.0));
     let shared = m.find_edge(v[1], v[4]).unwrap();
     let (w, e2) = m.split_edge(shared, 0.25).unwrap();
     m.validate().unwrap();
     assert_eq!(m.position(w), v3(0.5, 0.25, 0.));
-    assert_eq!(m.attr("radius", Domain::Vert, w.index()), Some(AttrValue::Scalar(1.5)));
+    assert_eq!(
+        m.attr("radius", Domain::Vert, w.index()),
+        Some(AttrValue::Scalar(1.5))
+    );
     assert_eq!(m.face_len(f0), 5);
     assert_eq!(m.face_len(f1), 5);
     assert!(follows(&ring(&m, f0), v[1], w));
@@ -162,7 +188,10 @@ fn join_faces_dissolves_the_shared_edge() {
     let boundary = m.find_edge(v[0], v[1]).unwrap();
     assert_eq!(
         m.join_faces(boundary),
-        Err(KernelError::NotTwoFaces { edge: boundary, faces: 1 })
+        Err(KernelError::NotTwoFaces {
+            edge: boundary,
+            faces: 1
+        })
     );
 }
 
@@ -273,11 +302,17 @@ fn glue_verts_merges_parallel_edges() {
 #[test]
 fn glue_verts_refuses_two_corners_of_one_face() {
     let mut m = Mesh::new();
-    let r: Vec<VertId> = (0..4).map(|i| m.make_vert(v3(i as f64, (i % 2) as f64, 0.))).collect();
+    let r: Vec<VertId> = (0..4)
+        .map(|i| m.make_vert(v3(i as f64, (i % 2) as f64, 0.)))
+        .collect();
     let f = m.make_face(&r).unwrap();
     assert_eq!(
         m.glue_verts(r[0], r[2]),
-        Err(KernelError::GlueWithinFace { a: r[0], b: r[2], face: f })
+        Err(KernelError::GlueWithinFace {
+            a: r[0],
+            b: r[2],
+            face: f
+        })
     );
     assert_eq!(m.glue_verts(r[1], r[1]), Err(KernelError::SameVertex(r[1])));
     m.validate().unwrap();
@@ -342,7 +377,13 @@ fn join_mesh_appends_a_copy_with_attributes() {
     b.set_attr("age", Domain::Vert, vb[2].index(), AttrValue::Int(7));
     let map = a.join_mesh(&b);
     a.validate().unwrap();
-    assert_eq!((a.vert_count(), a.edge_count(), a.face_count()), (12, 14, 4));
+    assert_eq!(
+        (a.vert_count(), a.edge_count(), a.face_count()),
+        (12, 14, 4)
+    );
     let moved = map.verts[vb[2].index()].unwrap();
-    assert_eq!(a.attr("age", Domain::Vert, moved.index()), Some(AttrValue::Int(7)));
+    assert_eq!(
+        a.attr("age", Domain::Vert, moved.index()),
+        Some(AttrValue::Int(7))
+    );
 }

@@ -15,6 +15,7 @@ mod arena;
 pub mod attrs;
 pub mod euler;
 pub mod ids;
+pub mod measure;
 pub mod mesh;
 pub mod ops;
 pub mod polygon;
@@ -23,6 +24,7 @@ pub mod validate;
 pub use attrs::{AttrValue, LayerKind};
 pub use euler::{JoinMap, KernelError};
 pub use ids::{Domain, EdgeId, FaceId, LoopId, VertId};
+pub use measure::MeshReport;
 pub use mesh::Mesh;
 pub use validate::ValidationError;
 

@@ -49,7 +49,10 @@ impl Mesh {
 
     fn validate_free_slots(&self) -> Result<(), ValidationError> {
         for i in self.verts.free_slots() {
-            ensure!(!self.verts.contains(i), "free vertex slot {i} holds a vertex");
+            ensure!(
+                !self.verts.contains(i),
+                "free vertex slot {i} holds a vertex"
+            );
         }
         for i in self.edges.free_slots() {
             ensure!(!self.edges.contains(i), "free edge slot {i} holds an edge");
@@ -76,8 +79,16 @@ impl Mesh {
                 "more than one edge joins {a} and {b} (one is {e})"
             );
             for link in edge.disk {
-                ensure!(self.contains_edge(link.prev), "{e} disk link to dead {}", link.prev);
-                ensure!(self.contains_edge(link.next), "{e} disk link to dead {}", link.next);
+                ensure!(
+                    self.contains_edge(link.prev),
+                    "{e} disk link to dead {}",
+                    link.prev
+                );
+                ensure!(
+                    self.contains_edge(link.next),
+                    "{e} disk link to dead {}",
+                    link.next
+                );
             }
             if let Some(l) = edge.first_loop {
                 ensure!(self.loops.contains(l.0), "{e} refers to dead loop {l}");
@@ -97,7 +108,10 @@ impl Mesh {
             let mut steps = 0usize;
             loop {
                 let edge = self.edge(e);
-                ensure!(edge.verts.contains(&v), "{e} is in the disk cycle of {v} but does not end there");
+                ensure!(
+                    edge.verts.contains(&v),
+                    "{e} is in the disk cycle of {v} but does not end there"
+                );
                 let link = edge.disk[edge.side(v)];
                 let next = self.edge(link.next);
                 ensure!(
@@ -106,7 +120,10 @@ impl Mesh {
                     link.next
                 );
                 steps += 1;
-                ensure!(steps <= self.edge_count(), "disk cycle of {v} does not close");
+                ensure!(
+                    steps <= self.edge_count(),
+                    "disk cycle of {v} does not close"
+                );
                 e = link.next;
                 if e == start {
                     break;
@@ -128,20 +145,37 @@ impl Mesh {
         let mut walked = 0usize;
         for (i, edge) in self.edges.iter() {
             let e = EdgeId(i);
-            let Some(start) = edge.first_loop else { continue };
+            let Some(start) = edge.first_loop else {
+                continue;
+            };
             let mut l = start;
             let mut steps = 0usize;
             loop {
                 let lp = self.lp(l);
-                ensure!(lp.edge == e, "{l} is in the radial cycle of {e} but uses {}", lp.edge);
-                ensure!(edge.verts.contains(&lp.vert), "{l} on {e} starts at {} which is not an end", lp.vert);
-                ensure!(self.loops.contains(lp.radial_next.0), "{l} radial link to dead {}", lp.radial_next);
+                ensure!(
+                    lp.edge == e,
+                    "{l} is in the radial cycle of {e} but uses {}",
+                    lp.edge
+                );
+                ensure!(
+                    edge.verts.contains(&lp.vert),
+                    "{l} on {e} starts at {} which is not an end",
+                    lp.vert
+                );
+                ensure!(
+                    self.loops.contains(lp.radial_next.0),
+                    "{l} radial link to dead {}",
+                    lp.radial_next
+                );
                 ensure!(
                     self.lp(lp.radial_next).radial_prev == l,
                     "radial cycle of {e}: next of {l} does not point back"
                 );
                 steps += 1;
-                ensure!(steps <= self.loop_count(), "radial cycle of {e} does not close");
+                ensure!(
+                    steps <= self.loop_count(),
+                    "radial cycle of {e} does not close"
+                );
                 l = lp.radial_next;
                 if l == start {
                     break;
@@ -163,27 +197,58 @@ impl Mesh {
         for (i, face) in self.faces.iter() {
             let f = FaceId(i);
             ensure!(face.len >= 3, "{f} has {} corners", face.len);
-            ensure!(self.loops.contains(face.first_loop.0), "{f} refers to dead loop {}", face.first_loop);
+            ensure!(
+                self.loops.contains(face.first_loop.0),
+                "{f} refers to dead loop {}",
+                face.first_loop
+            );
             seen.clear();
             let mut l = face.first_loop;
             for _ in 0..face.len {
                 let lp = self.lp(l);
-                ensure!(lp.face == f, "{l} is in the boundary of {f} but names {}", lp.face);
-                ensure!(self.contains_vert(lp.vert), "{l} refers to dead vertex {}", lp.vert);
-                ensure!(self.contains_edge(lp.edge), "{l} refers to dead edge {}", lp.edge);
-                ensure!(self.loops.contains(lp.next.0), "{l} links to dead loop {}", lp.next);
+                ensure!(
+                    lp.face == f,
+                    "{l} is in the boundary of {f} but names {}",
+                    lp.face
+                );
+                ensure!(
+                    self.contains_vert(lp.vert),
+                    "{l} refers to dead vertex {}",
+                    lp.vert
+                );
+                ensure!(
+                    self.contains_edge(lp.edge),
+                    "{l} refers to dead edge {}",
+                    lp.edge
+                );
+                ensure!(
+                    self.loops.contains(lp.next.0),
+                    "{l} links to dead loop {}",
+                    lp.next
+                );
                 let next = self.lp(lp.next);
-                ensure!(next.prev == l, "boundary of {f}: next of {l} does not point back");
+                ensure!(
+                    next.prev == l,
+                    "boundary of {f}: next of {l} does not point back"
+                );
                 let ends = self.edge(lp.edge).verts;
                 ensure!(
                     ends.contains(&lp.vert) && ends.contains(&next.vert),
                     "{l} of {f} runs {} -> {} along {} which joins {} and {}",
-                    lp.vert, next.vert, lp.edge, ends[0], ends[1]
+                    lp.vert,
+                    next.vert,
+                    lp.edge,
+                    ends[0],
+                    ends[1]
                 );
                 seen.push(lp.vert);
                 l = lp.next;
             }
-            ensure!(l == face.first_loop, "boundary of {f} does not close after {} loops", face.len);
+            ensure!(
+                l == face.first_loop,
+                "boundary of {f} does not close after {} loops",
+                face.len
+            );
             seen.sort_unstable();
             if let Some(w) = seen.windows(2).find(|w| w[0] == w[1]) {
                 return Err(ValidationError(format!("{f} uses vertex {} twice", w[0])));
@@ -196,7 +261,12 @@ impl Mesh {
             self.loop_count()
         );
         for (i, lp) in self.loops.iter() {
-            ensure!(self.contains_face(lp.face), "{} belongs to dead face {}", LoopId(i), lp.face);
+            ensure!(
+                self.contains_face(lp.face),
+                "{} belongs to dead face {}",
+                LoopId(i),
+                lp.face
+            );
         }
         Ok(())
     }

@@ -59,7 +59,11 @@ impl Selection {
 
     /// Builds a canonical selection from unordered lists.
     pub fn from_parts(verts: Vec<VertId>, edges: Vec<EdgeId>, faces: Vec<FaceId>) -> Self {
-        let mut s = Self { verts, edges, faces };
+        let mut s = Self {
+            verts,
+            edges,
+            faces,
+        };
         s.normalize();
         s
     }

@@ -1,0 +1,49 @@
+# graftal — common tasks. `make example` and `make test` are the two
+# commands the README promises on a fresh machine.
+
+CARGO ?= cargo
+OUT ?= out
+GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
+
+.PHONY: example test unit doc-test examples validate-gltf lint bench clean
+
+## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
+example:
+	mkdir -p $(OUT)
+	$(CARGO) run --release --quiet -- run rules/chair.toml -o $(OUT)/chair.glb --stats $(OUT)/chair.json
+	@echo "example written to $(OUT)/chair.glb (stats: $(OUT)/chair.json)"
+
+## The whole test suite: unit + integration tests, doc tests, every example
+## rule file through the Khronos glTF validator.
+test: unit doc-test validate-gltf
+
+unit:
+	$(CARGO) nextest run --all-targets --no-fail-fast
+
+doc-test:
+	$(CARGO) test --doc --quiet
+
+## Run every example in rules/ to GLB and validate the files with the Khronos validator.
+examples:
+	$(CARGO) build --quiet
+	mkdir -p $(OUT)/examples
+	for f in rules/*.toml rules/*.ron; do \
+		name=$$(basename $${f%.*}); \
+		./target/debug/graftal run $$f -o $(OUT)/examples/$$name.glb --stats $(OUT)/examples/$$name.json || exit 1; \
+	done
+
+validate-gltf: examples
+	@test -d $(GLTF_VALIDATOR_DIR)/node_modules/gltf-validator || \
+		npm install --silent --no-audit --no-fund --prefix $(GLTF_VALIDATOR_DIR) gltf-validator@2.0.0-dev.3.10
+	NODE_PATH=$(GLTF_VALIDATOR_DIR)/node_modules node tests/validate_gltf.cjs $(OUT)/examples/*.glb
+
+lint:
+	$(CARGO) fmt --all -- --check
+	$(CARGO) clippy --all-targets -- -D warnings
+
+## Criterion benchmarks (release).
+bench:
+	$(CARGO) bench
+
+clean:
+	rm -rf $(OUT)

@@ -1,0 +1,254 @@
+//! The command line: `run`, `check`, `info`, `convert`.
+//!
+//! Exit codes: 0 success; 1 runtime failure (a step failed, an output could
+//! not be written); 2 usage error, bad rule file or bad input mesh.
+//! Outputs are written atomically: a temporary file, then a rename.
+
+mod stats;
+
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use crate::grammar::{self, RunOptions};
+use crate::io::{self, bridge};
+use crate::rules::{self, Override, RuleError};
+
+/// Exit status for a failure at run time.
+pub const EXIT_RUNTIME: u8 = 1;
+/// Exit status for usage errors, bad rule files and bad input meshes.
+pub const EXIT_INPUT: u8 = 2;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "graftal",
+    version,
+    about = "Deterministic batch generator of 3D meshes from rule files"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Run a rule file and write the mesh (format from OUT's extension).
+    Run {
+        /// Rule file (.toml or .ron).
+        rules: PathBuf,
+        /// Output mesh: .obj, .gltf, .glb, .stl (binary), .ply (binary).
+        /// Defaults to RULES' file stem with .obj in the current directory.
+        #[arg(short, long, value_name = "OUT")]
+        output: Option<PathBuf>,
+        /// Seed for every random draw (default: the file's `seed`, else 0).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Override a parameter: `--set name=value` (a number or expression).
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+        /// Write run statistics as JSON to FILE, or `-` for standard output.
+        #[arg(long, value_name = "FILE")]
+        stats: Option<PathBuf>,
+        /// Include wall-clock times in the stats (makes them differ run to run).
+        #[arg(long)]
+        timings: bool,
+        /// Fail when the mesh exceeds this many elements (vertices+edges+faces).
+        #[arg(long, default_value_t = 50_000_000, value_name = "N")]
+        max_elements: usize,
+        /// Text-format variants: write STL and PLY as ASCII.
+        #[arg(long)]
+        ascii: bool,
+    },
+    /// Parse and compile a rule file without running it.
+    Check {
+        rules: PathBuf,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+    },
+    /// Describe a mesh file: counts, bounds, area, volume, manifoldness.
+    Info {
+        mesh: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert a mesh between formats (by extension).
+    Convert {
+        input: PathBuf,
+        output: PathBuf,
+        /// Write STL and PLY as ASCII.
+        #[arg(long)]
+        ascii: bool,
+    },
+}
+
+fn parse_override(text: &str) -> Result<Override, String> {
+    Override::parse(text)
+}
+
+/// Entry point used by `main`: parses arguments, runs, maps errors to exit codes.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(err) => {
+            let _ = err.print();
+            return ExitCode::from(if err.use_stderr() { EXIT_INPUT } else { 0 });
+        }
+    };
+    match execute(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(failure) => {
+            failure.report();
+            ExitCode::from(failure.code())
+        }
+    }
+}
+
+/// Why a command failed.
+pub enum Failure {
+    Rule(Box<RuleError>),
+    Input(String),
+    Runtime(String),
+}
+
+impl Failure {
+    fn code(&self) -> u8 {
+        match self {
+            Failure::Rule(_) | Failure::Input(_) => EXIT_INPUT,
+            Failure::Runtime(_) => EXIT_RUNTIME,
+        }
+    }
+
+    fn report(&self) {
+        let mut err = std::io::stderr().lock();
+        match self {
+            Failure::Rule(e) => {
+                let _ = writeln!(err, "error: {}", e.headline());
+                let theme =
+                    if std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none() {
+                        miette::GraphicalTheme::unicode()
+                    } else {
+                        miette::GraphicalTheme::unicode_nocolor()
+                    };
+                let mut rendered = String::new();
+                let handler = miette::GraphicalReportHandler::new_themed(theme);
+                if handler
+                    .render_report(&mut rendered, e.as_ref() as &dyn miette::Diagnostic)
+                    .is_ok()
+                {
+                    let _ = write!(err, "{rendered}");
+                }
+            }
+            Failure::Input(m) | Failure::Runtime(m) => {
+                let _ = writeln!(err, "error: {m}");
+            }
+        }
+    }
+}
+
+impl From<RuleError> for Failure {
+    fn from(e: RuleError) -> Self {
+        Failure::Rule(Box::new(e))
+    }
+}
+
+fn output_format(path: &Path, ascii: bool) -> Result<io::MeshFormat, Failure> {
+    let format = io::MeshFormat::from_path(path).map_err(|e| Failure::Input(e.to_string()))?;
+    Ok(match (format, ascii) {
+        (io::MeshFormat::StlBinary, true) => io::MeshFormat::StlAscii,
+        (io::MeshFormat::PlyBinary, true) => io::MeshFormat::PlyAscii,
+        (f, _) => f,
+    })
+}
+
+fn write_output(
+    path: &Path,
+    format: io::MeshFormat,
+    mesh: &io::IndexedMesh,
+) -> Result<(), Failure> {
+    let bytes = io::encode(mesh, format)
+        .map_err(|e| Failure::Runtime(format!("{}: {e}", path.display())))?;
+    io::atomic::write_atomic(path, &bytes)
+        .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))
+}
+
+pub fn execute(command: Command) -> Result<(), Failure> {
+    match command {
+        Command::Run {
+            rules,
+            output,
+            seed,
+            overrides,
+            stats,
+            timings,
+            max_elements,
+            ascii,
+        } => {
+            let output = output.unwrap_or_else(|| {
+                let stem = rules
+                    .file_stem()
+                    .map_or_else(|| "out".into(), |s| s.to_os_string());
+                PathBuf::from(stem).with_extension("obj")
+            });
+            // Check the output format before doing any work.
+            let format = output_format(&output, ascii)?;
+            let program = rules::compile_file(&rules, &overrides)?;
+            let result = grammar::run(&program, &RunOptions { seed, max_elements })
+                .map_err(|e| Failure::Runtime(e.to_string()))?;
+            let indexed = bridge::mesh_to_indexed(&result.mesh);
+            write_output(&output, format, &indexed)?;
+            let report = result.mesh.report();
+            if let Some(stats_path) = stats {
+                let json = stats::run_stats(&program, &result, &report, timings);
+                if stats_path.as_os_str() == "-" {
+                    println!("{json}");
+                } else {
+                    io::atomic::write_atomic(&stats_path, format!("{json}\n").as_bytes()).map_err(
+                        |e| Failure::Runtime(format!("cannot write {}: {e}", stats_path.display())),
+                    )?;
+                }
+            }
+            eprintln!(
+                "wrote {} ({} vertices, {} faces, seed {})",
+                output.display(),
+                report.verts,
+                report.faces,
+                result.seed
+            );
+            Ok(())
+        }
+        Command::Check { rules, overrides } => {
+            let program = rules::compile_file(&rules, &overrides)?;
+            println!(
+                "{}: ok ({} parameters, {} steps)",
+                program.file,
+                program.param_names.len(),
+                program.steps.len()
+            );
+            Ok(())
+        }
+        Command::Info { mesh, json } => {
+            let indexed = io::read_mesh(&mesh).map_err(|e| Failure::Input(e.to_string()))?;
+            let (kernel_mesh, import) = bridge::mesh_from_indexed_report(&indexed)
+                .map_err(|e| Failure::Input(format!("{}: {e}", mesh.display())))?;
+            let report = kernel_mesh.report();
+            if json {
+                println!("{}", stats::info_json(&mesh, &report, &import));
+            } else {
+                print!("{}", stats::info_text(&mesh, &report, &import));
+            }
+            Ok(())
+        }
+        Command::Convert {
+            input,
+            output,
+            ascii,
+        } => {
+            let format = output_format(&output, ascii)?;
+            let indexed = io::read_mesh(&input).map_err(|e| Failure::Input(e.to_string()))?;
+            write_output(&output, format, &indexed)
+        }
+    }
+}

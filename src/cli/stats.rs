@@ -1,0 +1,162 @@
+//! JSON and text renderings of run statistics and mesh reports. Field order
+//! is fixed by the structs, floats print in shortest round-trip form, and
+//! times appear only on request, so stats are byte-stable for golden checks.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::grammar::RunOutput;
+use crate::io::bridge::ImportReport;
+use crate::kernel::MeshReport;
+use crate::rules::Program;
+
+#[derive(Serialize)]
+struct MeshJson {
+    vertices: usize,
+    edges: usize,
+    faces: usize,
+    triangles: usize,
+    wire_edges: usize,
+    boundary_edges: usize,
+    non_manifold_edges: usize,
+    non_manifold_vertices: usize,
+    isolated_vertices: usize,
+    bounds: Option<[[f64; 3]; 2]>,
+    area: f64,
+    volume: Option<f64>,
+    manifold: bool,
+    watertight: bool,
+    consistently_oriented: bool,
+    components: usize,
+    euler_characteristic: i64,
+}
+
+fn mesh_json(r: &MeshReport) -> MeshJson {
+    MeshJson {
+        vertices: r.verts,
+        edges: r.edges,
+        faces: r.faces,
+        triangles: r.triangles,
+        wire_edges: r.wire_edges,
+        boundary_edges: r.boundary_edges,
+        non_manifold_edges: r.non_manifold_edges,
+        non_manifold_vertices: r.non_manifold_verts,
+        isolated_vertices: r.isolated_verts,
+        bounds: r.bounds.map(|(lo, hi)| [lo.to_array(), hi.to_array()]),
+        area: r.area,
+        volume: r.volume,
+        manifold: r.manifold,
+        watertight: r.watertight,
+        consistently_oriented: r.consistently_oriented,
+        components: r.components,
+        euler_characteristic: r.euler_characteristic,
+    }
+}
+
+#[derive(Serialize)]
+struct StepJson<'a> {
+    name: &'a str,
+    op: &'a str,
+    candidates: usize,
+    matched: usize,
+    created_vertices: usize,
+    created_edges: usize,
+    created_faces: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    time_ms: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct RunJson<'a> {
+    graftal_version: &'a str,
+    rules: &'a str,
+    rule_hash: String,
+    seed: u64,
+    params: Vec<(&'a str, f64)>,
+    mesh: MeshJson,
+    steps: Vec<StepJson<'a>>,
+}
+
+/// The `--stats` document of a run.
+pub fn run_stats(program: &Program, run: &RunOutput, report: &MeshReport, timings: bool) -> String {
+    let doc = RunJson {
+        graftal_version: env!("CARGO_PKG_VERSION"),
+        rules: &program.file,
+        rule_hash: format!("{:016x}", program.rule_hash),
+        seed: run.seed,
+        params: run.params.iter().map(|(n, v)| (n.as_str(), *v)).collect(),
+        mesh: mesh_json(report),
+        steps: run
+            .steps
+            .iter()
+            .map(|s| StepJson {
+                name: &s.name,
+                op: s.op,
+                candidates: s.candidates,
+                matched: s.matched,
+                created_vertices: s.created.verts,
+                created_edges: s.created.edges,
+                created_faces: s.created.faces,
+                time_ms: timings.then_some(s.elapsed.as_secs_f64() * 1e3),
+            })
+            .collect(),
+    };
+    serde_json::to_string_pretty(&doc).expect("stats serialize")
+}
+
+#[derive(Serialize)]
+struct InfoJson<'a> {
+    file: &'a str,
+    degenerate_faces_dropped: usize,
+    #[serde(flatten)]
+    mesh: MeshJson,
+}
+
+pub fn info_json(path: &Path, report: &MeshReport, import: &ImportReport) -> String {
+    let file = path.display().to_string();
+    serde_json::to_string_pretty(&InfoJson {
+        file: &file,
+        degenerate_faces_dropped: import.degenerate_faces,
+        mesh: mesh_json(report),
+    })
+    .expect("info serializes")
+}
+
+pub fn info_text(path: &Path, r: &MeshReport, import: &ImportReport) -> String {
+    let mut s = String::new();
+    let yes = |b: bool| if b { "yes" } else { "no" };
+    s += &format!("file:               {}\n", path.display());
+    s += &format!("vertices:           {}\n", r.verts);
+    s += &format!(
+        "edges:              {} ({} wire, {} boundary, {} non-manifold)\n",
+        r.edges, r.wire_edges, r.boundary_edges, r.non_manifold_edges
+    );
+    s += &format!(
+        "faces:              {} ({} triangles)\n",
+        r.faces, r.triangles
+    );
+    if let Some((lo, hi)) = r.bounds {
+        s += &format!(
+            "bounds:             [{}, {}, {}] .. [{}, {}, {}]\n",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        );
+    }
+    s += &format!("area:               {}\n", r.area);
+    match r.volume {
+        Some(v) => s += &format!("volume:             {v}\n"),
+        None => s += "volume:             (not closed)\n",
+    }
+    s += &format!("manifold:           {}\n", yes(r.manifold));
+    s += &format!("watertight:         {}\n", yes(r.watertight));
+    s += &format!("oriented:           {}\n", yes(r.consistently_oriented));
+    s += &format!("components:         {}\n", r.components);
+    s += &format!("euler:              {}\n", r.euler_characteristic);
+    if import.degenerate_faces > 0 {
+        s += &format!(
+            "degenerate faces:   {} dropped on import\n",
+            import.degenerate_faces
+        );
+    }
+    s
+}

@@ -1,0 +1,354 @@
+//! [`IndexedMesh`]: the neutral polygon soup that every reader produces and every writer
+//! consumes, plus the shared helpers the formats use (validation, per-polygon triangulation and
+//! first-appearance vertex merging).
+//!
+//! Polygons are stored flat: polygon `k` is `face_indices[face_starts[k]..face_starts[k + 1]]`.
+//! An empty mesh has `face_starts == [0]`; `IndexedMesh::default()` (with `face_starts` empty) is
+//! accepted as an empty mesh too.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::IoError;
+use crate::kernel::polygon;
+
+/// A format-neutral indexed polygon mesh.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct IndexedMesh {
+    /// Vertex positions.
+    pub positions: Vec<[f64; 3]>,
+    /// Flat polygon storage: polygon k uses `face_indices[face_starts[k]..face_starts[k + 1]]`.
+    /// Has `polygon_count() + 1` entries and starts with 0 (`[0]` when there are no polygons).
+    pub face_starts: Vec<u32>,
+    /// Vertex indices of all polygons, concatenated.
+    pub face_indices: Vec<u32>,
+    /// Wire edges (edges with no face), written as line primitives.
+    pub lines: Vec<[u32; 2]>,
+    /// Named per-vertex scalar attributes, sorted by name, each with `positions.len()` values
+    /// (e.g. `"radius"`). Names are ASCII letters, digits and `_`.
+    pub vertex_scalars: Vec<(String, Vec<f64>)>,
+}
+
+impl IndexedMesh {
+    /// An empty mesh (`face_starts == [0]`).
+    pub fn new() -> Self {
+        IndexedMesh {
+            face_starts: vec![0],
+            ..Default::default()
+        }
+    }
+
+    /// Appends a polygon given by vertex indices.
+    ///
+    /// # Panics
+    /// Panics if the total number of polygon indices would exceed `u32::MAX`.
+    pub fn push_polygon(&mut self, indices: &[u32]) {
+        if self.face_starts.is_empty() {
+            self.face_starts.push(0);
+        }
+        self.face_indices.extend_from_slice(indices);
+        let end = u32::try_from(self.face_indices.len()).expect("more than u32::MAX indices");
+        self.face_starts.push(end);
+    }
+
+    /// Number of polygons.
+    pub fn polygon_count(&self) -> usize {
+        self.face_starts.len().saturating_sub(1)
+    }
+
+    /// Vertex indices of polygon `k`.
+    ///
+    /// # Panics
+    /// Panics if `k >= polygon_count()` or the storage is malformed (see [`Self::validate`]).
+    pub fn polygon(&self, k: usize) -> &[u32] {
+        let start = self.face_starts[k] as usize;
+        let end = self.face_starts[k + 1] as usize;
+        &self.face_indices[start..end]
+    }
+
+    /// Iterator over all polygons in order.
+    ///
+    /// # Panics
+    /// The iterator panics on malformed storage (see [`Self::validate`]).
+    pub fn polygons(&self) -> impl ExactSizeIterator<Item = &[u32]> + '_ {
+        self.face_starts
+            .windows(2)
+            .map(|w| &self.face_indices[w[0] as usize..w[1] as usize])
+    }
+
+    /// Position of vertex `i` as a `DVec3`.
+    pub fn position(&self, i: u32) -> DVec3 {
+        DVec3::from_array(self.positions[i as usize])
+    }
+
+    /// Values of the vertex scalar called `name`, if present.
+    pub fn vertex_scalar(&self, name: &str) -> Option<&[f64]> {
+        self.vertex_scalars
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+
+    /// Checks everything the writers rely on: polygon storage, polygon sizes (at least 3),
+    /// index ranges, finite positions, and scalar names, lengths and values.
+    pub fn validate(&self) -> Result<(), IoError> {
+        let invalid = |message: String| Err(IoError::InvalidMesh { message });
+        let count = self.positions.len();
+        if u32::try_from(count).is_err() {
+            return invalid(format!("{count} vertices exceed the u32 index range"));
+        }
+        for (vertex, p) in self.positions.iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(IoError::NonFinite { vertex });
+            }
+        }
+        let starts = &self.face_starts;
+        let storage_ok = if starts.is_empty() {
+            self.face_indices.is_empty()
+        } else {
+            starts[0] == 0
+                && starts.windows(2).all(|w| w[0] <= w[1])
+                && starts[starts.len() - 1] as usize == self.face_indices.len()
+        };
+        if !storage_ok {
+            return invalid(format!(
+                "face_starts must start at 0, never decrease and end at face_indices.len() \
+                 ({} entries, {} indices)",
+                starts.len(),
+                self.face_indices.len()
+            ));
+        }
+        for (k, poly) in self.polygons().enumerate() {
+            if poly.len() < 3 {
+                return invalid(format!(
+                    "polygon {k} has {} vertices (at least 3 required)",
+                    poly.len()
+                ));
+            }
+            if let Some(&v) = poly.iter().find(|&&v| v as usize >= count) {
+                return invalid(format!(
+                    "polygon {k} refers to vertex {v} but only {count} exist"
+                ));
+            }
+        }
+        for (k, line) in self.lines.iter().enumerate() {
+            if let Some(&v) = line.iter().find(|&&v| v as usize >= count) {
+                return invalid(format!(
+                    "line {k} refers to vertex {v} but only {count} exist"
+                ));
+            }
+        }
+        for (i, (name, values)) in self.vertex_scalars.iter().enumerate() {
+            let name_ok = !name.is_empty()
+                && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_')
+                && !["x", "y", "z"].iter().any(|r| name.eq_ignore_ascii_case(r));
+            if !name_ok {
+                return invalid(format!(
+                    "vertex scalar name {name:?} must be non-empty ASCII letters, digits or '_' \
+                     and not x, y or z"
+                ));
+            }
+            if let Some((other, _)) = self.vertex_scalars[..i]
+                .iter()
+                .find(|(other, _)| other.eq_ignore_ascii_case(name))
+            {
+                return invalid(format!(
+                    "vertex scalar names {other:?} and {name:?} collide (names are compared \
+                     case-insensitively)"
+                ));
+            }
+            if values.len() != count {
+                return invalid(format!(
+                    "vertex scalar {name:?} has {} values for {count} vertices",
+                    values.len()
+                ));
+            }
+            if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
+                return Err(IoError::NonFiniteScalar {
+                    name: name.clone(),
+                    vertex,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Vertex scalars in name order, whatever order they are stored in.
+    pub(crate) fn sorted_scalars(&self) -> Vec<(&str, &[f64])> {
+        let mut sorted: Vec<(&str, &[f64])> = self
+            .vertex_scalars
+            .iter()
+            .map(|(n, v)| (n.as_str(), v.as_slice()))
+            .collect();
+        sorted.sort_by(|a, b| a.0.cmp(b.0));
+        sorted
+    }
+
+    /// Total number of triangles the polygons triangulate into.
+    pub(crate) fn triangle_count(&self) -> u64 {
+        self.polygons().map(|p| p.len() as u64 - 2).sum()
+    }
+
+    /// Fails if some position does not fit an `f32` (binary STL, glTF).
+    pub(crate) fn check_f32_range(&self, format: &'static str) -> Result<(), IoError> {
+        for (vertex, p) in self.positions.iter().enumerate() {
+            if let Some(&value) = p.iter().find(|c| c.abs() > f32::MAX as f64) {
+                return Err(IoError::OutOfRange {
+                    vertex,
+                    value,
+                    format,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Reusable buffers for triangulating a mesh polygon by polygon without allocating.
+#[derive(Default)]
+pub(crate) struct PolygonTriangulator {
+    /// Positions of the current polygon.
+    pub points: Vec<DVec3>,
+    /// Triangles of the current polygon, as local indices into `points`.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl PolygonTriangulator {
+    /// Loads `poly` (indices into `mesh.positions`) and triangulates it; returns the polygon's
+    /// unit normal (`None` if degenerate).
+    pub fn run(&mut self, mesh: &IndexedMesh, poly: &[u32]) -> Option<DVec3> {
+        self.points.clear();
+        self.points.extend(poly.iter().map(|&i| mesh.position(i)));
+        self.triangles.clear();
+        polygon::triangulate_with_normal(&self.points, &mut self.triangles)
+    }
+}
+
+/// Merges bitwise-equal positions (with `-0.0` treated as `0.0`), numbering vertices in order of
+/// first appearance so the result does not depend on hashing.
+#[derive(Default)]
+pub(crate) struct VertexMerger {
+    map: HashMap<[u64; 3], u32>,
+    /// Positions in first-appearance order.
+    pub positions: Vec<[f64; 3]>,
+}
+
+impl VertexMerger {
+    /// Index of `p`, adding it if new; `None` once the u32 index range is exhausted.
+    pub fn index(&mut self, p: [f64; 3]) -> Option<u32> {
+        let p = p.map(|c| if c == 0.0 { 0.0 } else { c });
+        let key = p.map(f64::to_bits);
+        if let Some(&i) = self.map.get(&key) {
+            return Some(i);
+        }
+        let i = u32::try_from(self.positions.len()).ok()?;
+        if i == u32::MAX {
+            return None;
+        }
+        self.map.insert(key, i);
+        self.positions.push(p);
+        Some(i)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_meshes_are_valid() {
+        let m = IndexedMesh::new();
+        assert_eq!(m.face_starts, vec![0]);
+        assert_eq!(m.polygon_count(), 0);
+        m.validate().unwrap();
+        let d = IndexedMesh::default();
+        assert_eq!(d.polygon_count(), 0);
+        assert_eq!(d.polygons().count(), 0);
+        d.validate().unwrap();
+    }
+
+    #[test]
+    fn push_and_iterate_polygons() {
+        let mut m = IndexedMesh {
+            positions: vec![[0.0; 3]; 5],
+            ..Default::default()
+        };
+        m.push_polygon(&[0, 1, 2]);
+        m.push_polygon(&[1, 2, 3, 4]);
+        assert_eq!(m.face_starts, vec![0, 3, 7]);
+        assert_eq!(m.polygon_count(), 2);
+        assert_eq!(m.polygon(1), &[1, 2, 3, 4]);
+        let all: Vec<&[u32]> = m.polygons().collect();
+        assert_eq!(all, vec![&[0, 1, 2][..], &[1, 2, 3, 4][..]]);
+        m.validate().unwrap();
+    }
+
+    #[test]
+    fn validation_catches_each_problem() {
+        let mut base = IndexedMesh::new();
+        base.positions = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        base.push_polygon(&[0, 1, 2]);
+        base.validate().unwrap();
+
+        let mut m = base.clone();
+        m.positions[1][2] = f64::NAN;
+        assert!(matches!(
+            m.validate(),
+            Err(IoError::NonFinite { vertex: 1 })
+        ));
+
+        let mut m = base.clone();
+        m.push_polygon(&[0, 1]);
+        let e = m.validate().unwrap_err().to_string();
+        assert!(e.contains("polygon 1 has 2 vertices"), "{e}");
+
+        let mut m = base.clone();
+        m.push_polygon(&[0, 1, 7]);
+        let e = m.validate().unwrap_err().to_string();
+        assert!(e.contains("refers to vertex 7 but only 3 exist"), "{e}");
+
+        let mut m = base.clone();
+        m.lines.push([0, 3]);
+        assert!(m.validate().is_err());
+
+        let mut m = base.clone();
+        m.face_starts = vec![0, 2];
+        assert!(m.validate().is_err());
+
+        let mut m = base.clone();
+        m.vertex_scalars.push(("radius".into(), vec![1.0, 2.0]));
+        assert!(m.validate().is_err());
+
+        let mut m = base.clone();
+        m.vertex_scalars.push(("bad name".into(), vec![1.0; 3]));
+        assert!(m.validate().is_err());
+
+        let mut m = base.clone();
+        m.vertex_scalars.push(("Y".into(), vec![1.0; 3]));
+        assert!(m.validate().is_err());
+
+        let mut m = base.clone();
+        m.vertex_scalars.push(("a".into(), vec![1.0; 3]));
+        m.vertex_scalars.push(("A".into(), vec![1.0; 3]));
+        assert!(m.validate().is_err());
+
+        let mut m = base.clone();
+        m.vertex_scalars
+            .push(("r".into(), vec![1.0, f64::INFINITY, 0.0]));
+        assert!(matches!(
+            m.validate(),
+            Err(IoError::NonFiniteScalar { vertex: 1, .. })
+        ));
+    }
+
+    #[test]
+    fn merger_numbers_by_first_appearance() {
+        let mut m = VertexMerger::default();
+        assert_eq!(m.index([1.0, 2.0, 3.0]), Some(0));
+        assert_eq!(m.index([0.0, 0.0, 0.0]), Some(1));
+        assert_eq!(m.index([1.0, 2.0, 3.0]), Some(0));
+        assert_eq!(m.index([-0.0, 0.0, -0.0]), Some(1));
+        assert_eq!(m.positions.len(), 2);
+    }
+}

@@ -1,0 +1,590 @@
+//! The rule file as written: a spanned syntax tree deserialized from TOML or
+//! RON with one schema. Nothing is resolved here; [`super::compile`] turns
+//! it into a [`super::program::Program`] and reports semantic errors.
+//!
+//! Shape (TOML; RON mirrors it with `( key: value )` structs):
+//! ```toml
+//! seed = 7                       # default seed, `--seed` overrides
+//! [params]                       # constants, expressions, distributions
+//! width = { uniform = [0.4, 0.6] }
+//! [start]                        # one create operator
+//! grid = { segments = [3, 3], size = ["width", 1.0] }
+//! [[step]]                       # operators in order
+//! name = "legs"
+//! select = "normal.z < -0.5"     # condition over element properties
+//! extrude_faces = { distance = 0.5 }
+//! ```
+//! Enums are externally tagged (the operator name is the key), which keeps
+//! exact source spans in TOML errors.
+
+use std::fmt;
+
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde::Deserialize;
+
+use super::spanned::Spanned;
+
+/// The whole file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RuleFile {
+    #[serde(default)]
+    pub seed: Option<Spanned<u64>>,
+    #[serde(default)]
+    pub params: Params,
+    #[serde(default)]
+    pub start: Option<Step>,
+    #[serde(default, rename = "step", alias = "steps")]
+    pub steps: Vec<Step>,
+}
+
+/// A number or an expression string.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Scalar {
+    Number(f64),
+    Expr(String),
+}
+
+pub type Value = Spanned<Scalar>;
+
+impl<'de> Deserialize<'de> for Scalar {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct ScalarVisitor;
+        impl Visitor<'_> for ScalarVisitor {
+            type Value = Scalar;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or an expression string")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<Scalar, E> {
+                Ok(Scalar::Number(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<Scalar, E> {
+                Ok(Scalar::Number(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Scalar, E> {
+                Ok(Scalar::Number(v as f64))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<Scalar, E> {
+                Ok(Scalar::Expr(v.to_owned()))
+            }
+        }
+        d.deserialize_any(ScalarVisitor)
+    }
+}
+
+/// A 3-vector: `[x, y, z]` of scalars, or one scalar used for all three.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VectorSpec {
+    Components(Box<[Value; 3]>),
+    Uniform(Scalar),
+}
+
+pub type Vector = Spanned<VectorSpec>;
+
+impl<'de> Deserialize<'de> for VectorSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct VectorVisitor;
+        impl<'de> Visitor<'de> for VectorVisitor {
+            type Value = VectorSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a 3-vector [x, y, z] or a single number or expression")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<VectorSpec, E> {
+                Ok(VectorSpec::Uniform(Scalar::Number(v)))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<VectorSpec, E> {
+                Ok(VectorSpec::Uniform(Scalar::Number(v as f64)))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<VectorSpec, E> {
+                Ok(VectorSpec::Uniform(Scalar::Number(v as f64)))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<VectorSpec, E> {
+                Ok(VectorSpec::Uniform(Scalar::Expr(v.to_owned())))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<VectorSpec, A::Error> {
+                let mut items = Vec::with_capacity(3);
+                while let Some(item) = seq.next_element::<Value>()? {
+                    items.push(item);
+                }
+                let n = items.len();
+                let array: [Value; 3] = items
+                    .try_into()
+                    .map_err(|_| de::Error::invalid_length(n, &"3 components"))?;
+                Ok(VectorSpec::Components(Box::new(array)))
+            }
+        }
+        d.deserialize_any(VectorVisitor)
+    }
+}
+
+/// Two scalars written as a list, `[a, b]`, in TOML and RON alike (a
+/// fixed-size array would be a tuple, `(a, b)`, in RON).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pair(pub [Value; 2]);
+
+impl<'de> Deserialize<'de> for Pair {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct PairVisitor;
+        impl<'de> Visitor<'de> for PairVisitor {
+            type Value = Pair;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a list of two numbers or expressions, [a, b]")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Pair, A::Error> {
+                let mut items = Vec::with_capacity(2);
+                while let Some(item) = seq.next_element::<Value>()? {
+                    items.push(item);
+                }
+                let n = items.len();
+                let pair: [Value; 2] = items
+                    .try_into()
+                    .map_err(|_| de::Error::invalid_length(n, &"2 values"))?;
+                Ok(Pair(pair))
+            }
+        }
+        d.deserialize_seq(PairVisitor)
+    }
+}
+
+/// Parameters in file order.
+#[derive(Debug, Default)]
+pub struct Params(pub Vec<(Spanned<String>, Spanned<ParamSpec>)>);
+
+impl<'de> Deserialize<'de> for Params {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct ParamsVisitor;
+        impl<'de> Visitor<'de> for ParamsVisitor {
+            type Value = Params;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a table of parameters")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Params, A::Error> {
+                let mut out = Vec::new();
+                while let Some(key) = map.next_key::<Spanned<String>>()? {
+                    out.push((key, map.next_value()?));
+                }
+                Ok(Params(out))
+            }
+        }
+        // RON writes parameters as a struct: `params: (width: 1.0)`.
+        d.deserialize_struct("Params", &[], ParamsVisitor)
+    }
+}
+
+/// One parameter: a constant, an expression over other parameters, or a
+/// distribution the seed draws from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamSpec {
+    Number(f64),
+    Expr(String),
+    Table(Box<ParamTable>),
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParamTable {
+    /// Uniform real in `[low, high)`.
+    pub uniform: Option<Pair>,
+    /// Normal `[mean, standard deviation]`.
+    pub normal: Option<Pair>,
+    /// Uniform integer in `[low, high]` (inclusive).
+    pub int: Option<Pair>,
+    /// One of these values, with optional `weights`.
+    pub choice: Option<Vec<Value>>,
+    pub weights: Option<Vec<Spanned<f64>>>,
+    /// Clamp the drawn value into `[min, max]`.
+    pub clamp: Option<Pair>,
+}
+
+impl<'de> Deserialize<'de> for ParamSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct ParamVisitor;
+        impl<'de> Visitor<'de> for ParamVisitor {
+            type Value = ParamSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number, an expression string, or a distribution table such as { uniform = [0, 1] }")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<ParamSpec, E> {
+                Ok(ParamSpec::Number(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<ParamSpec, E> {
+                Ok(ParamSpec::Number(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<ParamSpec, E> {
+                Ok(ParamSpec::Number(v as f64))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<ParamSpec, E> {
+                Ok(ParamSpec::Expr(v.to_owned()))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<ParamSpec, A::Error> {
+                ParamTable::deserialize(de::value::MapAccessDeserializer::new(map))
+                    .map(|t| ParamSpec::Table(Box::new(t)))
+            }
+        }
+        d.deserialize_any(ParamVisitor)
+    }
+}
+
+/// Which elements a step's selection is made of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DomainName {
+    Verts,
+    Edges,
+    Faces,
+}
+
+/// One step: an operator, and which elements it applies to.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub name: Option<Spanned<String>>,
+    /// Condition over element properties; only matching elements are used.
+    pub select: Option<Spanned<String>>,
+    /// Start from what an earlier step created instead of the whole mesh.
+    pub from: Option<Spanned<String>>,
+    /// Element kind to select, when the operator accepts several.
+    pub on: Option<Spanned<DomainName>>,
+    /// The operator and its key (`None` when the step names none).
+    pub op: Option<(Spanned<String>, Spanned<Operation>)>,
+    /// Keys that are neither step fields nor operators, and operators past
+    /// the first: reported by the compiler at their exact position.
+    pub stray_keys: Vec<Spanned<String>>,
+}
+
+/// Every operator a step can run. The key in the file is the snake_case name.
+// Built once per step: variant sizes do not matter, boxing would only add noise.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq)]
+pub enum Operation {
+    Vertex(VertexOp),
+    Circle(CircleOp),
+    Grid(GridOp),
+    Cube(CubeOp),
+    UvSphere(UvSphereOp),
+    Cylinder(CylinderOp),
+    Cone(ConeOp),
+    Import(ImportOp),
+    Translate(TranslateOp),
+    Rotate(RotateOp),
+    Scale(ScaleOp),
+    ExtrudeVerts(ExtrudeOp),
+    ExtrudeEdges(ExtrudeOp),
+    ExtrudeFaces(ExtrudeOp),
+    ExtrudeRegion(ExtrudeOp),
+    InsetFaces(InsetOp),
+    InsetRegion(InsetOp),
+    SplitEdges(SplitEdgesOp),
+    Triangulate(Empty),
+    Reverse(Empty),
+    RecomputeNormals(NormalsOp),
+    Delete(DeleteOp),
+    Duplicate(Empty),
+    DissolveEdges(Empty),
+    MakeFace(Empty),
+    Merge(MergeOp),
+    Mirror(MirrorOp),
+    RegionExtend(RegionOp),
+    RegionReduce(RegionOp),
+}
+
+/// Operator keys, for "unknown operator" messages and the documentation.
+pub const OPERATOR_NAMES: &[&str] = &[
+    "vertex",
+    "circle",
+    "grid",
+    "cube",
+    "uv_sphere",
+    "cylinder",
+    "cone",
+    "import",
+    "translate",
+    "rotate",
+    "scale",
+    "extrude_verts",
+    "extrude_edges",
+    "extrude_faces",
+    "extrude_region",
+    "inset_faces",
+    "inset_region",
+    "split_edges",
+    "triangulate",
+    "reverse",
+    "recompute_normals",
+    "delete",
+    "duplicate",
+    "dissolve_edges",
+    "make_face",
+    "merge",
+    "mirror",
+    "region_extend",
+    "region_reduce",
+];
+
+const STEP_KEYS: &[&str] = &["name", "select", "from", "on"];
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Empty {}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VertexOp {
+    pub at: Option<Vector>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CircleOp {
+    pub segments: Option<Value>,
+    pub radius: Option<Value>,
+    pub fill: Option<bool>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridOp {
+    pub segments: Option<Pair>,
+    pub size: Option<Pair>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CubeOp {
+    pub size: Option<Value>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UvSphereOp {
+    pub segments: Option<Value>,
+    pub rings: Option<Value>,
+    pub radius: Option<Value>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CylinderOp {
+    pub segments: Option<Value>,
+    pub radius: Option<Value>,
+    pub radius_top: Option<Value>,
+    pub depth: Option<Value>,
+    pub caps: Option<bool>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConeOp {
+    pub segments: Option<Value>,
+    pub radius: Option<Value>,
+    pub depth: Option<Value>,
+    pub caps: Option<bool>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImportOp {
+    /// Mesh file (OBJ, STL, glTF, GLB), relative to the rule file.
+    pub path: Spanned<String>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TranslateOp {
+    pub offset: Vector,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotateOp {
+    /// Degrees, counter-clockwise about `axis` (right-handed).
+    pub angle: Value,
+    pub axis: Option<Vector>,
+    pub center: Option<Vector>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScaleOp {
+    pub factor: Vector,
+    pub center: Option<Vector>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExtrudeOp {
+    pub keep_original: Option<bool>,
+    /// Move the extruded copy by this vector.
+    pub offset: Option<Vector>,
+    /// Or move it this far along the normal.
+    pub distance: Option<Value>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InsetOp {
+    pub thickness: Value,
+    pub depth: Option<Value>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SplitEdgesOp {
+    pub cuts: Option<Value>,
+    pub ratios: Option<Vec<Value>>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NormalsOp {
+    pub outside: Option<bool>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DeleteModeName {
+    All,
+    Faces,
+    FacesAndEdges,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeleteOp {
+    pub mode: Option<DeleteModeName>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MergeOp {
+    pub distance: Value,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisName {
+    X,
+    Y,
+    Z,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MirrorOp {
+    /// Mirror across the plane through `point` perpendicular to this axis…
+    pub axis: Option<AxisName>,
+    /// …or to this normal.
+    pub normal: Option<Vector>,
+    pub point: Option<Vector>,
+    pub merge_distance: Option<Value>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AdjacencyName {
+    Edge,
+    Vert,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionOp {
+    pub by: Option<AdjacencyName>,
+}
+
+impl<'de> Deserialize<'de> for Step {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct StepVisitor;
+        impl<'de> Visitor<'de> for StepVisitor {
+            type Value = Step;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a step table with one operator key, such as { cube = { size = 2 } }")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Step, A::Error> {
+                let mut step = Step {
+                    name: None,
+                    select: None,
+                    from: None,
+                    on: None,
+                    op: None,
+                    stray_keys: Vec::new(),
+                };
+                while let Some(key) = map.next_key::<Spanned<String>>()? {
+                    match key.value.as_str() {
+                        "name" => step.name = Some(map.next_value()?),
+                        "select" => step.select = Some(map.next_value()?),
+                        "from" => step.from = Some(map.next_value()?),
+                        "on" => step.on = Some(map.next_value()?),
+                        other => match next_operation(&mut map, other)? {
+                            Some(operation) if step.op.is_none() => {
+                                step.op = Some((key, operation))
+                            }
+                            _ => step.stray_keys.push(key),
+                        },
+                    }
+                }
+                Ok(step)
+            }
+        }
+        // A struct to RON (`(name: "x", cube: ())`), a table to TOML.
+        d.deserialize_struct("Step", step_fields(), StepVisitor)
+    }
+}
+
+/// Reads the value of operator key `key`; `None` (value skipped) when `key`
+/// names no operator.
+fn next_operation<'de, A: MapAccess<'de>>(
+    map: &mut A,
+    key: &str,
+) -> Result<Option<Spanned<Operation>>, A::Error> {
+    macro_rules! op {
+        ($variant:ident, $ty:ty) => {{
+            let v: Spanned<$ty> = map.next_value()?;
+            Spanned {
+                value: Operation::$variant(v.value),
+                span: v.span,
+            }
+        }};
+    }
+    Ok(Some(match key {
+        "vertex" => op!(Vertex, VertexOp),
+        "circle" => op!(Circle, CircleOp),
+        "grid" => op!(Grid, GridOp),
+        "cube" => op!(Cube, CubeOp),
+        "uv_sphere" => op!(UvSphere, UvSphereOp),
+        "cylinder" => op!(Cylinder, CylinderOp),
+        "cone" => op!(Cone, ConeOp),
+        "import" => op!(Import, ImportOp),
+        "translate" => op!(Translate, TranslateOp),
+        "rotate" => op!(Rotate, RotateOp),
+        "scale" => op!(Scale, ScaleOp),
+        "extrude_verts" => op!(ExtrudeVerts, ExtrudeOp),
+        "extrude_edges" => op!(ExtrudeEdges, ExtrudeOp),
+        "extrude_faces" => op!(ExtrudeFaces, ExtrudeOp),
+        "extrude_region" => op!(ExtrudeRegion, ExtrudeOp),
+        "inset_faces" => op!(InsetFaces, InsetOp),
+        "inset_region" => op!(InsetRegion, InsetOp),
+        "split_edges" => op!(SplitEdges, SplitEdgesOp),
+        "triangulate" => op!(Triangulate, Empty),
+        "reverse" => op!(Reverse, Empty),
+        "recompute_normals" => op!(RecomputeNormals, NormalsOp),
+        "delete" => op!(Delete, DeleteOp),
+        "duplicate" => op!(Duplicate, Empty),
+        "dissolve_edges" => op!(DissolveEdges, Empty),
+        "make_face" => op!(MakeFace, Empty),
+        "merge" => op!(Merge, MergeOp),
+        "mirror" => op!(Mirror, MirrorOp),
+        "region_extend" => op!(RegionExtend, RegionOp),
+        "region_reduce" => op!(RegionReduce, RegionOp),
+        _ => {
+            map.next_value::<de::IgnoredAny>()?;
+            return Ok(None);
+        }
+    }))
+}
+
+/// Every key a step may hold, for `deserialize_struct` (RON needs the list).
+fn step_fields() -> &'static [&'static str] {
+    use std::sync::OnceLock;
+    static FIELDS: OnceLock<Vec<&'static str>> = OnceLock::new();
+    FIELDS.get_or_init(|| STEP_KEYS.iter().chain(OPERATOR_NAMES).copied().collect())
+}

@@ -1,0 +1,268 @@
+//! The compiled program: what the engine runs, with every name resolved to
+//! a slot and every expression compiled. Built by [`super::compile`]; the
+//! engine never re-checks it.
+
+use std::path::PathBuf;
+
+use crate::kernel::ops::delete::DeleteMode;
+use crate::kernel::ops::select::Adjacency;
+use crate::kernel::Domain;
+
+use super::expr::Expr;
+
+/// A compiled rule file.
+#[derive(Debug, Clone)]
+pub struct Program {
+    /// Display name of the rule file.
+    pub file: String,
+    /// Directory that relative paths in the file resolve against.
+    pub base_dir: PathBuf,
+    /// Seed used when the command line gives none.
+    pub default_seed: u64,
+    /// FNV-1a of the rule file's bytes (and overrides), for stats.
+    pub rule_hash: u64,
+    /// Parameter names by slot (sorted by name).
+    pub param_names: Vec<String>,
+    /// Parameters in evaluation order (dependencies first).
+    pub params: Vec<Param>,
+    /// The start step (if any) followed by the steps, in order.
+    pub steps: Vec<Step>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Param {
+    pub name: String,
+    pub slot: u32,
+    /// Random stream key (`param/NAME`).
+    pub key: u64,
+    pub kind: ParamKind,
+    pub clamp: Option<(Expr, Expr)>,
+}
+
+#[derive(Debug, Clone)]
+pub enum ParamKind {
+    Expr(Expr),
+    Uniform {
+        low: Expr,
+        high: Expr,
+    },
+    Normal {
+        mean: Expr,
+        sd: Expr,
+    },
+    Int {
+        low: Expr,
+        high: Expr,
+    },
+    Choice {
+        values: Vec<Expr>,
+        weights: Vec<f64>,
+    },
+}
+
+/// A compiled expression over parameters: evaluated once per step.
+pub type Scalar = Expr;
+
+#[derive(Debug, Clone)]
+pub struct Vector(pub [Scalar; 3]);
+
+/// A property of an element that conditions can read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Property {
+    Id,
+    Random,
+    Position(usize),
+    Center(usize),
+    Normal(usize),
+    Min(usize),
+    Max(usize),
+    Direction(usize),
+    Length,
+    Area,
+    Sides,
+    Degree,
+    FaceCount,
+    EdgeNeighbors,
+    VertNeighbors,
+}
+
+/// A per-element condition: an expression whose slots are the parameters
+/// followed by `properties` (slot `param_count + i` is `properties[i]`).
+#[derive(Debug, Clone)]
+pub struct Condition {
+    pub expr: Expr,
+    pub properties: Vec<Property>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub name: String,
+    /// Random stream key (`step/NAME`).
+    pub key: u64,
+    /// `file:line:column` of the step's operator, for runtime errors.
+    pub location: String,
+    /// Element kind the step selects.
+    pub domain: Domain,
+    pub select: Option<Condition>,
+    /// Index of the earlier step whose created elements are the candidates.
+    pub from: Option<usize>,
+    pub op: Op,
+}
+
+#[derive(Debug, Clone)]
+pub enum Offset {
+    None,
+    Vector(Box<Vector>),
+    Normal(Scalar),
+}
+
+// One per step: variant sizes do not matter, boxing would only add noise.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone)]
+pub enum Op {
+    Vertex {
+        at: Vector,
+    },
+    Circle {
+        segments: Scalar,
+        radius: Scalar,
+        fill: bool,
+    },
+    Grid {
+        segments: [Scalar; 2],
+        size: [Scalar; 2],
+    },
+    Cube {
+        size: Scalar,
+    },
+    UvSphere {
+        segments: Scalar,
+        rings: Scalar,
+        radius: Scalar,
+    },
+    Cylinder {
+        segments: Scalar,
+        radius: Scalar,
+        radius_top: Scalar,
+        depth: Scalar,
+        caps: bool,
+    },
+    Import {
+        path: PathBuf,
+    },
+    Translate {
+        offset: Vector,
+    },
+    Rotate {
+        angle_degrees: Scalar,
+        axis: Vector,
+        center: Vector,
+    },
+    Scale {
+        factor: Vector,
+        center: Vector,
+    },
+    ExtrudeVerts {
+        offset: Offset,
+    },
+    ExtrudeEdges {
+        offset: Offset,
+    },
+    ExtrudeFaces {
+        keep_original: bool,
+        offset: Offset,
+    },
+    ExtrudeRegion {
+        keep_original: bool,
+        offset: Offset,
+    },
+    InsetFaces {
+        thickness: Scalar,
+        depth: Scalar,
+    },
+    InsetRegion {
+        thickness: Scalar,
+        depth: Scalar,
+    },
+    SplitEdgesCuts {
+        cuts: Scalar,
+    },
+    SplitEdgesRatios {
+        ratios: Vec<Scalar>,
+    },
+    Triangulate,
+    Reverse,
+    RecomputeNormals {
+        outside: bool,
+    },
+    Delete {
+        mode: DeleteMode,
+    },
+    Duplicate,
+    DissolveEdges,
+    MakeFace,
+    Merge {
+        distance: Scalar,
+    },
+    Mirror {
+        point: Vector,
+        normal: Vector,
+        merge_distance: Scalar,
+    },
+    RegionExtend {
+        by: Adjacency,
+    },
+    RegionReduce {
+        by: Adjacency,
+    },
+}
+
+impl Op {
+    /// The operator's name as written in rule files.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Op::Vertex { .. } => "vertex",
+            Op::Circle { .. } => "circle",
+            Op::Grid { .. } => "grid",
+            Op::Cube { .. } => "cube",
+            Op::UvSphere { .. } => "uv_sphere",
+            Op::Cylinder { .. } => "cylinder",
+            Op::Import { .. } => "import",
+            Op::Translate { .. } => "translate",
+            Op::Rotate { .. } => "rotate",
+            Op::Scale { .. } => "scale",
+            Op::ExtrudeVerts { .. } => "extrude_verts",
+            Op::ExtrudeEdges { .. } => "extrude_edges",
+            Op::ExtrudeFaces { .. } => "extrude_faces",
+            Op::ExtrudeRegion { .. } => "extrude_region",
+            Op::InsetFaces { .. } => "inset_faces",
+            Op::InsetRegion { .. } => "inset_region",
+            Op::SplitEdgesCuts { .. } | Op::SplitEdgesRatios { .. } => "split_edges",
+            Op::Triangulate => "triangulate",
+            Op::Reverse => "reverse",
+            Op::RecomputeNormals { .. } => "recompute_normals",
+            Op::Delete { .. } => "delete",
+            Op::Duplicate => "duplicate",
+            Op::DissolveEdges => "dissolve_edges",
+            Op::MakeFace => "make_face",
+            Op::Merge { .. } => "merge",
+            Op::Mirror { .. } => "mirror",
+            Op::RegionExtend { .. } => "region_extend",
+            Op::RegionReduce { .. } => "region_reduce",
+        }
+    }
+
+    /// Whether the operator makes geometry from nothing (no selection).
+    pub fn is_create(&self) -> bool {
+        matches!(
+            self,
+            Op::Vertex { .. }
+                | Op::Circle { .. }
+                | Op::Grid { .. }
+                | Op::Cube { .. }
+                | Op::UvSphere { .. }
+                | Op::Cylinder { .. }
+                | Op::Import { .. }
+        )
+    }
+}
