@@ -35,7 +35,7 @@ examples:
 validate-gltf: examples
 	@test -d $(GLTF_VALIDATOR_DIR)/node_modules/gltf-validator || \
 		npm install --silent --no-audit --no-fund --prefix $(GLTF_VALIDATOR_DIR) gltf-validator@2.0.0-dev.3.10
-	NODE_PATH=$(GLTF_VALIDATOR_DIR)/node_modules node tests/validate_gltf.cjs $(OUT)/examples/*.glb
+	NODE_PATH=$(GLTF_VALIDATOR_DIR)/node_modules node tests/validate_gltf.mjs --strict $(OUT)/examples/*.glb
 
 lint:
 	$(CARGO) fmt --all -- --check

@@ -52,6 +52,14 @@ fn every_example_runs_and_is_closed_and_valid() {
             path_str(&stats),
         ]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let twin = dir.path().join(format!("{name}-twin.obj"));
+        let o = graftal(&["run", path_str(&rules), "-o", path_str(&twin)]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            std::fs::read(&twin).unwrap(),
+            "{name}: twin runs differ"
+        );
         let json: serde_json::Value =
             serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
         let mesh = &json["mesh"];

@@ -170,6 +170,7 @@ fn semantic_errors_are_located() {
         ("[[step]]\ncube = {}\ngrid = {}\n", "test:3:1", "both `cube` and `grid`"),
         ("[[step]]\nextrude_faces = { offset = [0, 0, 1], distance = 2 }\n", "test:2:", "either `offset` or `distance`"),
         ("[[step]]\ncube = { size = \"area * 2\" }\n", "test:2:18", "unknown name `area`"),
+        ("[params]\nwidth = 1\n[[step]]\nselect = \"widht > 1\"\ninset_faces = { thickness = 1 }\n", "test:4:11", "unknown name `widht`"),
         ("[[step]]\ntranslate = { offset = [1, 2] }\n", "test:2:", "3 components"),
     ];
     for (text, location, message) in cases {
@@ -181,6 +182,13 @@ fn semantic_errors_are_located() {
         );
         assert!(e.message.contains(message), "{text}: {}", e.message);
     }
+    let e = program(
+        "[params]\nwidth = 1\n[start]\ncube = { size = \"widht\" }\n",
+        SourceFormat::Toml,
+        &[],
+    )
+    .unwrap_err();
+    assert_eq!(e.help.as_deref(), Some("did you mean `width`?"));
 }
 
 #[test]

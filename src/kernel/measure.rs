@@ -172,27 +172,10 @@ impl Mesh {
 mod tests {
     use super::*;
 
+    /// The unit cube centred on the origin.
     fn cube() -> Mesh {
         let mut m = Mesh::new();
-        let v: Vec<VertId> = (0..8)
-            .map(|i| {
-                m.make_vert(DVec3::new(
-                    (i & 1) as f64,
-                    ((i >> 1) & 1) as f64,
-                    ((i >> 2) & 1) as f64,
-                ))
-            })
-            .collect();
-        for ring in [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ] {
-            m.make_face(&ring.map(|i| v[i])).unwrap();
-        }
+        crate::kernel::ops::create::create_cube(&mut m, 1.0).unwrap();
         m
     }
 
@@ -205,7 +188,7 @@ mod tests {
         assert_eq!(r.area, 6.0);
         assert_eq!(r.euler_characteristic, 2);
         assert_eq!(r.components, 1);
-        assert_eq!(r.bounds, Some((DVec3::ZERO, DVec3::ONE)));
+        assert_eq!(r.bounds, Some((DVec3::splat(-0.5), DVec3::splat(0.5))));
     }
 
     #[test]
@@ -221,14 +204,19 @@ mod tests {
         let mut a = cube();
         let b = cube();
         let map = a.join_mesh(&b);
-        let corner_b = map.verts[0].unwrap();
-        let shift = DVec3::ONE;
         let ids: Vec<VertId> = map.verts.iter().flatten().copied().collect();
-        for v in ids {
+        let corner_b = *ids
+            .iter()
+            .find(|&&v| a.position(v) == DVec3::splat(-0.5))
+            .unwrap();
+        for &v in &ids {
             let p = a.position(v);
-            a.set_position(v, p + shift);
+            a.set_position(v, p + DVec3::ONE);
         }
-        let corner_a = a.vert_ids().find(|&v| a.position(v) == DVec3::ONE).unwrap();
+        let corner_a = a
+            .vert_ids()
+            .find(|&v| a.position(v) == DVec3::splat(0.5) && !ids.contains(&v))
+            .unwrap();
         a.glue_verts(corner_a, corner_b).unwrap();
         a.validate().unwrap();
         let r = a.report();

@@ -204,7 +204,11 @@ impl<'a> Compiler<'a> {
     /// Compiles an expression over parameters only.
     fn param_expr(&self, text: &str, span: Option<Range<usize>>) -> Result<Expr, RuleError> {
         Expr::compile(text, &|name: &str| self.resolve_param(name)).map_err(|err| {
+            let hint = unknown_name_hint(&err.message, &self.param_names);
             let mut e = self.expr_error(span.clone(), err);
+            if let Some(hint) = hint {
+                return e.with_help(hint);
+            }
             if PROPERTY_NAMES
                 .iter()
                 .any(|p| e.message.contains(&format!("`{p}`")))
@@ -288,8 +292,13 @@ impl<'a> Compiler<'a> {
             property_for(domain, name).map(|p| base + property_index(p))
         };
         let expr = Expr::compile(&text.value, &resolver).map_err(|err| {
+            let hint = unknown_name_hint(&err.message, &self.param_names);
             let e = self.expr_error(self.content_span(text, &text.value), err);
-            e.with_help(format!("{} properties: {}", domain, property_help(domain)))
+            let properties = format!("{} properties: {}", domain, property_help(domain));
+            e.with_help(match hint {
+                Some(hint) => format!("{hint} ({properties})"),
+                None => properties,
+            })
         })?;
         for &slot in expr.used_slots() {
             if slot >= base {
@@ -1013,8 +1022,19 @@ fn adjacency(by: Option<ast::AdjacencyName>) -> Adjacency {
     }
 }
 
-/// The known key nearest to `word` by edit distance, if close enough to be a typo.
+/// The step key nearest to `word`, if close enough to be a typo.
 fn closest(word: &str) -> Option<&'static str> {
+    let keys: Vec<&'static str> = ["name", "select", "from", "on"]
+        .iter()
+        .chain(ast::OPERATOR_NAMES)
+        .copied()
+        .collect();
+    closest_in(word, &keys).map(|i| keys[i])
+}
+
+/// Index of the candidate nearest to `word` by edit distance, if close
+/// enough to be a typo (at most 2 edits, more for long words).
+fn closest_in<S: AsRef<str>>(word: &str, candidates: &[S]) -> Option<usize> {
     fn distance(a: &str, b: &str) -> usize {
         let b: Vec<char> = b.chars().collect();
         let mut row: Vec<usize> = (0..=b.len()).collect();
@@ -1029,13 +1049,19 @@ fn closest(word: &str) -> Option<&'static str> {
         }
         row[b.len()]
     }
-    ["name", "select", "from", "on"]
+    candidates
         .iter()
-        .chain(ast::OPERATOR_NAMES)
-        .map(|&k| (distance(word, k), k))
-        .filter(|&(d, k)| d <= 2.max(k.len() / 4))
+        .enumerate()
+        .map(|(i, c)| (distance(word, c.as_ref()), i))
+        .filter(|&(d, i)| d > 0 && d <= 2.max(candidates[i].as_ref().len() / 4))
         .min()
-        .map(|(_, k)| k)
+        .map(|(_, i)| i)
+}
+
+/// A "did you mean" hint for an unknown name in an expression.
+fn unknown_name_hint(message: &str, names: &[String]) -> Option<String> {
+    let name = message.strip_prefix("unknown name `")?.split('`').next()?;
+    closest_in(name, names).map(|i| format!("did you mean `{}`?", names[i]))
 }
 
 /// Loads and compiles a rule file in one go.
