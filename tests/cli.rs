@@ -36,6 +36,10 @@ fn examples() -> Vec<PathBuf> {
     files
 }
 
+/// Examples that are not closed solids: surfaces grown on open faces, and
+/// skinned skeletons (closed tubes that overlap at joints).
+const OPEN_EXAMPLES: &[&str] = &["grid-scope", "windmill", "tree", "house", "cupboard"];
+
 #[test]
 fn every_example_runs_and_is_closed_and_valid() {
     let dir = temp_dir();
@@ -64,12 +68,15 @@ fn every_example_runs_and_is_closed_and_valid() {
             serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
         let mesh = &json["mesh"];
         assert!(mesh["faces"].as_u64().unwrap() > 0, "{name} has faces");
-        assert_eq!(mesh["watertight"], true, "{name} should be closed: {mesh}");
-        assert_eq!(mesh["manifold"], true, "{name}: {mesh}");
-        assert!(
-            mesh["volume"].as_f64().unwrap() > 0.0,
-            "{name} encloses positive volume"
-        );
+        // The G³ examples are open surfaces and skeletons by design.
+        if !OPEN_EXAMPLES.contains(&name) {
+            assert_eq!(mesh["watertight"], true, "{name} should be closed: {mesh}");
+            assert_eq!(mesh["manifold"], true, "{name}: {mesh}");
+            assert!(
+                mesh["volume"].as_f64().unwrap() > 0.0,
+                "{name} encloses positive volume"
+            );
+        }
         // The written file reads back into a valid kernel mesh with the same counts.
         let indexed = graftal::io::read_mesh(&out).unwrap();
         let back = graftal::io::bridge::mesh_from_indexed(&indexed).unwrap();
@@ -257,15 +264,15 @@ fn runtime_failures_exit_1_and_leave_no_file() {
         "rules/tower.toml",
         "-o",
         path_str(&out),
-        "--max-elements",
+        "--max-primitives",
         "50",
     ]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(
-        stderr(&o).contains("over the limit of 50"),
-        "{}",
-        stderr(&o)
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "runaway growth has its own exit code"
     );
+    assert!(stderr(&o).contains("limit of 50"), "{}", stderr(&o));
     assert!(!out.exists());
 }
 

@@ -12,12 +12,14 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::grammar::{self, RunOptions};
+use crate::grammar::{self, RunErrorKind, RunOptions};
 use crate::io::{self, bridge};
 use crate::rules::{self, Override, RuleError};
 
 /// Exit status for a failure at run time.
 pub const EXIT_RUNTIME: u8 = 1;
+/// Exit code when the model outgrows `--max-primitives` (runaway growth).
+pub const EXIT_TOO_LARGE: u8 = 3;
 /// Exit status for usage errors, bad rule files and bad input meshes.
 pub const EXIT_INPUT: u8 = 2;
 
@@ -54,9 +56,10 @@ pub enum Command {
         /// Include wall-clock times in the stats (makes them differ run to run).
         #[arg(long)]
         timings: bool,
-        /// Fail when the mesh exceeds this many elements (vertices+edges+faces).
-        #[arg(long, default_value_t = 50_000_000, value_name = "N")]
-        max_elements: usize,
+        /// Stop (exit code 3, no output) when the model would exceed this
+        /// many primitives (vertices + edges + faces).
+        #[arg(long, visible_alias = "max-elements", default_value_t = grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
+        max_primitives: usize,
         /// Text-format variants: write STL and PLY as ASCII.
         #[arg(long)]
         ascii: bool,
@@ -111,6 +114,8 @@ pub enum Failure {
     Rule(Box<RuleError>),
     Input(String),
     Runtime(String),
+    /// Runaway growth: the model outgrew `--max-primitives`.
+    TooLarge(String),
 }
 
 impl Failure {
@@ -118,6 +123,7 @@ impl Failure {
         match self {
             Failure::Rule(_) | Failure::Input(_) => EXIT_INPUT,
             Failure::Runtime(_) => EXIT_RUNTIME,
+            Failure::TooLarge(_) => EXIT_TOO_LARGE,
         }
     }
 
@@ -141,7 +147,7 @@ impl Failure {
                     let _ = write!(err, "{rendered}");
                 }
             }
-            Failure::Input(m) | Failure::Runtime(m) => {
+            Failure::Input(m) | Failure::Runtime(m) | Failure::TooLarge(m) => {
                 let _ = writeln!(err, "error: {m}");
             }
         }
@@ -183,7 +189,7 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             overrides,
             stats,
             timings,
-            max_elements,
+            max_primitives,
             ascii,
         } => {
             let output = output.unwrap_or_else(|| {
@@ -195,8 +201,15 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             // Check the output format before doing any work.
             let format = output_format(&output, ascii)?;
             let program = rules::compile_file(&rules, &overrides)?;
-            let result = grammar::run(&program, &RunOptions { seed, max_elements })
-                .map_err(|e| Failure::Runtime(e.to_string()))?;
+            let options = RunOptions {
+                seed,
+                max_elements: max_primitives,
+                ..RunOptions::default()
+            };
+            let result = grammar::run(&program, &options).map_err(|e| match e.kind {
+                RunErrorKind::TooLarge => Failure::TooLarge(e.to_string()),
+                RunErrorKind::Failed => Failure::Runtime(e.to_string()),
+            })?;
             let indexed = bridge::mesh_to_indexed(&result.mesh);
             write_output(&output, format, &indexed)?;
             let report = result.mesh.report();

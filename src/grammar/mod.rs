@@ -1,13 +1,21 @@
 //! The engine: runs a compiled [`Program`](crate::rules::Program) on the
 //! kernel and reports what each step did.
 //!
-//! A step gathers its candidates (every element of its kind, or what an
-//! earlier step created), keeps those whose condition holds — evaluated on
-//! the mesh as it was before the step, so the result does not depend on
-//! visiting order — and hands them, in ascending id order, to its kernel
-//! operator. The G³ commands of thesis 003 join this module later.
+//! - [`graph`]: the G³ graph on the kernel — node radius, turtle frames,
+//!   ages — in attribute layers.
+//! - [`commands`]: the five G³ commands, planned on generation Gₙ and then
+//!   applied, so visiting order cannot change the result.
+//! - [`scope`]: compound-command scopes and their reference frames.
+//! - [`properties`]: what conditions and parameters read.
+//! - `run`: the step loop, rules, compounds, statistics.
 
+pub mod commands;
+pub mod graph;
 mod properties;
 mod run;
+pub mod scope;
 
-pub use run::{run, CreatedCounts, RunError, RunOptions, RunOutput, StepStats};
+pub use run::{
+    run, CreatedCounts, RunError, RunErrorKind, RunOptions, RunOutput, StepStats,
+    DEFAULT_MAX_ELEMENTS,
+};

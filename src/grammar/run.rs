@@ -1,8 +1,13 @@
-//! Running a program: parameters, then each step in order.
+//! Running a program: parameters, then each step in order. A step gathers
+//! its candidates (every primitive of its kind, those of the current scope,
+//! or what an earlier step created), keeps those whose condition holds on
+//! the generation it reads, and runs its operator, G³ command or compound
+//! command on them.
 
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
+use rustc_hash::FxHashMap;
 use thiserror::Error;
 
 use crate::io;
@@ -10,25 +15,42 @@ use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_index, PROPERTY_SLOTS};
-use crate::rules::program::{Offset, Op, ParamKind, Program, Step, Vector};
+use crate::rules::program::{
+    Command, CommandKind, Condition, FrameParams, Offset, Op, ParamKind, Program, Step, Vector,
+};
 use crate::rules::random;
 
-use super::properties;
+use super::commands::{self, Plan};
+use super::graph::{self, Frame};
+use super::properties::{self, Context};
+use super::scope::{Measure, Reference, Scope};
 
 #[derive(Debug, Clone)]
 pub struct RunOptions {
     /// Seed; the program's default when `None`.
     pub seed: Option<u64>,
-    /// Stop with an error when the mesh holds more elements than this
+    /// Stop with an error when the mesh holds more primitives than this
     /// (vertices + edges + faces): the guard against runaway rules.
     pub max_elements: usize,
+    /// Testing hook: apply each command's plans in an order shuffled by
+    /// this value instead of ascending id (results must not change).
+    #[doc(hidden)]
+    pub shuffle_visits: Option<u64>,
+    /// Testing hook: check every kernel invariant after every step.
+    #[doc(hidden)]
+    pub validate_each_step: bool,
 }
+
+/// Default `--max-primitives`.
+pub const DEFAULT_MAX_ELEMENTS: usize = 50_000_000;
 
 impl Default for RunOptions {
     fn default() -> Self {
         Self {
             seed: None,
-            max_elements: 50_000_000,
+            max_elements: DEFAULT_MAX_ELEMENTS,
+            shuffle_visits: None,
+            validate_each_step: false,
         }
     }
 }
@@ -41,15 +63,26 @@ pub struct CreatedCounts {
     pub faces: usize,
 }
 
-/// What one step did.
+/// What one step did, summed over every time it ran (a compound's steps
+/// run once per initial primitive).
 #[derive(Debug, Clone)]
 pub struct StepStats {
     pub name: String,
     pub op: &'static str,
-    /// Elements considered (all of the kind, or an earlier step's products).
+    /// Times the step ran.
+    pub runs: usize,
+    /// Primitives considered (all of the kind, the scope's, or an earlier
+    /// step's products).
     pub candidates: usize,
     /// Candidates whose condition held.
     pub matched: usize,
+    /// Matched primitives the step was applied to.
+    pub applied: usize,
+    /// Matched primitives skipped by the command's probability.
+    pub skipped: usize,
+    /// Matched primitives another scope had already applied this command
+    /// to (thesis 003 §3.3.3): not applied again, products shared.
+    pub shared: usize,
     pub created: CreatedCounts,
     pub elapsed: Duration,
 }
@@ -60,13 +93,24 @@ pub struct RunOutput {
     pub seed: u64,
     /// Parameter values, sorted by name.
     pub params: Vec<(String, f64)>,
+    /// One entry per step that ran, in program order.
     pub steps: Vec<StepStats>,
+}
+
+/// Why a run failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunErrorKind {
+    /// An operator or command could not be applied.
+    Failed,
+    /// The model outgrew `max_elements`.
+    TooLarge,
 }
 
 /// A failure while running: which step, where it is written, and why.
 #[derive(Debug, Error)]
 #[error("{location}: step `{step}`: {message}")]
 pub struct RunError {
+    pub kind: RunErrorKind,
     pub step: String,
     pub location: String,
     pub message: String,
@@ -75,8 +119,21 @@ pub struct RunError {
 struct Runner<'p> {
     program: &'p Program,
     seed: u64,
+    max_elements: usize,
+    shuffle: Option<u64>,
+    validate_each_step: bool,
     /// Parameter values, then property values of the current element.
     slots: Vec<f64>,
+    /// Products of each step's latest run, by uid (for `from`).
+    created: Vec<Selection>,
+    stats: Vec<Option<StepStats>>,
+    /// Innermost scope last.
+    scopes: Vec<Scope>,
+    /// Uids of the compound steps being run, innermost last.
+    calls: Vec<u32>,
+    /// (compound step, command step, primitive) → products, for the
+    /// shared-primitive rule. Looked up only, never iterated.
+    applied: FxHashMap<(u32, u32, u32), Selection>,
 }
 
 /// Runs the program and returns the mesh with per-step statistics.
@@ -85,41 +142,25 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
     let mut runner = Runner {
         program,
         seed,
+        max_elements: options.max_elements,
+        shuffle: options.shuffle_visits,
+        validate_each_step: options.validate_each_step,
         slots: vec![0.0; program.param_names.len() + PROPERTY_SLOTS],
+        created: vec![Selection::new(); program.step_count],
+        stats: vec![None; program.step_count],
+        scopes: Vec::new(),
+        calls: Vec::new(),
+        applied: FxHashMap::default(),
     };
     runner.evaluate_params()?;
     let mut mesh = Mesh::new();
-    let mut created: Vec<Selection> = Vec::with_capacity(program.steps.len());
-    let mut stats = Vec::with_capacity(program.steps.len());
+    if program.uses_graph {
+        graph::ensure_layers(&mut mesh);
+    }
     for step in &program.steps {
-        let started = Instant::now();
-        let fail = |message: String| RunError {
-            step: step.name.clone(),
-            location: step.location.clone(),
-            message,
-        };
-        let (candidates, selected) = runner.select(&mesh, step, &created);
-        let made = runner.apply(&mut mesh, step, &selected).map_err(fail)?;
-        let total = mesh.vert_count() + mesh.edge_count() + mesh.face_count();
-        if total > options.max_elements {
-            return Err(fail(format!(
-                "the mesh has {total} elements, over the limit of {} (raise it with --max-elements)",
-                options.max_elements
-            )));
-        }
-        stats.push(StepStats {
-            name: step.name.clone(),
-            op: step.op.name(),
-            candidates,
-            matched: selected.len(),
-            created: CreatedCounts {
-                verts: made.verts.len(),
-                edges: made.edges.len(),
-                faces: made.faces.len(),
-            },
-            elapsed: started.elapsed(),
-        });
-        created.push(made);
+        runner.run_step(&mut mesh, step)?;
+        // Records of the shared-primitive rule live for one top-level step.
+        runner.applied.clear();
     }
     let params = program
         .param_names
@@ -131,8 +172,36 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         mesh,
         seed,
         params,
-        steps: stats,
+        steps: runner.stats.into_iter().flatten().collect(),
     })
+}
+
+fn step_error(step: &Step, kind: RunErrorKind, message: String) -> RunError {
+    RunError {
+        kind,
+        step: step.name.clone(),
+        location: step.location.clone(),
+        message,
+    }
+}
+
+/// Element counts of a selection.
+fn counts(s: &Selection) -> CreatedCounts {
+    CreatedCounts {
+        verts: s.verts.len(),
+        edges: s.edges.len(),
+        faces: s.faces.len(),
+    }
+}
+
+/// What a step did in one run, before it is summed into [`StepStats`].
+#[derive(Default)]
+struct Tally {
+    candidates: usize,
+    matched: usize,
+    applied: usize,
+    skipped: usize,
+    shared: usize,
 }
 
 impl Runner<'_> {
@@ -140,6 +209,7 @@ impl Runner<'_> {
         let seed = self.seed;
         for p in &self.program.params {
             let fail = |message: String| RunError {
+                kind: RunErrorKind::Failed,
                 step: format!("params.{}", p.name),
                 location: self.program.file.clone(),
                 message,
@@ -190,48 +260,337 @@ impl Runner<'_> {
         Ok(())
     }
 
-    /// Candidates and the selected element indices (ascending).
-    fn select(&mut self, mesh: &Mesh, step: &Step, created: &[Selection]) -> (usize, Vec<usize>) {
-        if step.op.is_create() {
-            return (0, Vec::new());
+    fn run_step(&mut self, mesh: &mut Mesh, step: &Step) -> Result<(), RunError> {
+        let started = Instant::now();
+        let generation = step.uid + 1;
+        let mut tally = Tally::default();
+        let made = if step.op.is_create() {
+            self.apply(mesh, step, &[])
+                .map_err(|m| step_error(step, RunErrorKind::Failed, m))?
+        } else {
+            let candidates = self.candidates(mesh, step);
+            tally.candidates = candidates.len();
+            let extra = match &step.op {
+                Op::Compound { index, .. } => self.program.compounds[*index].select.as_ref(),
+                _ => None,
+            };
+            let matched: Vec<usize> = candidates
+                .into_iter()
+                .filter(|&i| {
+                    [step.select.as_ref(), extra]
+                        .into_iter()
+                        .flatten()
+                        .all(|c| self.eval(mesh, step, generation, i, step.domain, c) != 0.0)
+                })
+                .collect();
+            tally.matched = matched.len();
+            match &step.op {
+                Op::Command(command) => {
+                    self.run_command(mesh, step, command, &matched, &mut tally)?
+                }
+                Op::Compound { index, frame } => {
+                    tally.applied = matched.len();
+                    self.run_compound(mesh, step, *index, frame, &matched)?
+                }
+                _ => {
+                    tally.applied = matched.len();
+                    self.apply(mesh, step, &matched)
+                        .map_err(|m| step_error(step, RunErrorKind::Failed, m))?
+                }
+            }
+        };
+        for scope in &mut self.scopes {
+            scope.add(&made);
         }
+        if self.validate_each_step {
+            mesh.validate().map_err(|e| {
+                step_error(
+                    step,
+                    RunErrorKind::Failed,
+                    format!("invalid mesh after the step: {e}"),
+                )
+            })?;
+        }
+        self.check_size(mesh, step, 0)?;
+        let stats = self.stats[step.uid as usize].get_or_insert_with(|| StepStats {
+            name: step.name.clone(),
+            op: step.op.name(),
+            runs: 0,
+            candidates: 0,
+            matched: 0,
+            applied: 0,
+            skipped: 0,
+            shared: 0,
+            created: CreatedCounts::default(),
+            elapsed: Duration::ZERO,
+        });
+        stats.runs += 1;
+        stats.candidates += tally.candidates;
+        stats.matched += tally.matched;
+        stats.applied += tally.applied;
+        stats.skipped += tally.skipped;
+        stats.shared += tally.shared;
+        let c = counts(&made);
+        stats.created.verts += c.verts;
+        stats.created.edges += c.edges;
+        stats.created.faces += c.faces;
+        stats.elapsed += started.elapsed();
+        self.created[step.uid as usize] = made;
+        Ok(())
+    }
+
+    fn check_size(&self, mesh: &Mesh, step: &Step, coming: usize) -> Result<(), RunError> {
+        let total = mesh.vert_count() + mesh.edge_count() + mesh.face_count();
+        if total.saturating_add(coming) > self.max_elements {
+            let message = if coming == 0 {
+                format!(
+                    "the model has {total} primitives, over the limit of {}",
+                    self.max_elements
+                )
+            } else {
+                format!(
+                    "the model would grow past the limit of {} primitives (it has {total}, this step adds about {coming})",
+                    self.max_elements
+                )
+            };
+            return Err(step_error(
+                step,
+                RunErrorKind::TooLarge,
+                format!("{message}; raise it with --max-primitives if the growth is intended"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Value of condition `c` for primitive `index` of `domain`.
+    fn eval(
+        &mut self,
+        mesh: &Mesh,
+        step: &Step,
+        generation: u32,
+        index: usize,
+        domain: Domain,
+        c: &Condition,
+    ) -> f64 {
+        let ctx = Context {
+            mesh,
+            scope: self.scopes.last(),
+            seed: self.seed,
+            stream: step.key,
+            generation,
+        };
+        let base = self.program.param_names.len();
+        for &p in &c.properties {
+            self.slots[base + property_index(p) as usize] =
+                properties::property(&ctx, domain, index, p);
+        }
+        c.expr.eval(&self.slots)
+    }
+
+    /// Candidates in ascending id order.
+    fn candidates(&self, mesh: &Mesh, step: &Step) -> Vec<usize> {
         let alive = |i: usize| match step.domain {
             Domain::Vert => mesh.contains_vert(VertId::from_index(i)),
             Domain::Edge => mesh.contains_edge(EdgeId::from_index(i)),
             Domain::Face => mesh.contains_face(FaceId::from_index(i)),
         };
-        let candidates: Vec<usize> = match step.from {
-            Some(i) => {
-                let s = &created[i];
-                let ids: Vec<usize> = match step.domain {
-                    Domain::Vert => s.verts.iter().map(|v| v.index()).collect(),
-                    Domain::Edge => s.edges.iter().map(|e| e.index()).collect(),
-                    Domain::Face => s.faces.iter().map(|f| f.index()).collect(),
-                };
-                ids.into_iter().filter(|&i| alive(i)).collect()
-            }
-            None => match step.domain {
-                Domain::Vert => mesh.vert_ids().map(|v| v.index()).collect(),
-                Domain::Edge => mesh.edge_ids().map(|e| e.index()).collect(),
-                Domain::Face => mesh.face_ids().map(|f| f.index()).collect(),
-            },
-        };
-        let count = candidates.len();
-        let Some(condition) = &step.select else {
-            return (count, candidates);
-        };
-        let base = self.program.param_names.len();
-        let selected = candidates
-            .into_iter()
-            .filter(|&i| {
-                for &p in &condition.properties {
-                    self.slots[base + property_index(p) as usize] =
-                        properties::property(mesh, step.domain, i, p, self.seed, step.key);
+        if let Some(uids) = &step.from {
+            let mut ids: Vec<usize> = Vec::new();
+            for &uid in uids {
+                let s = &self.created[uid as usize];
+                match step.domain {
+                    Domain::Vert => ids.extend(s.verts.iter().map(|v| v.index())),
+                    Domain::Edge => ids.extend(s.edges.iter().map(|e| e.index())),
+                    Domain::Face => ids.extend(s.faces.iter().map(|f| f.index())),
                 }
-                condition.expr.eval(&self.slots) != 0.0
-            })
-            .collect();
-        (count, selected)
+            }
+            ids.sort_unstable();
+            ids.dedup();
+            return ids.into_iter().filter(|&i| alive(i)).collect();
+        }
+        if let Some(scope) = self.scopes.last() {
+            return scope.members(mesh, step.domain);
+        }
+        match step.domain {
+            Domain::Vert => mesh.vert_ids().map(|v| v.index()).collect(),
+            Domain::Edge => mesh.edge_ids().map(|e| e.index()).collect(),
+            Domain::Face => mesh.face_ids().map(|f| f.index()).collect(),
+        }
+    }
+
+    fn reference(&self) -> Reference {
+        self.scopes.last().map_or(Reference::WORLD, |s| s.reference)
+    }
+
+    /// Plans a G³ command on every matched primitive of generation Gₙ, then
+    /// applies the plans.
+    fn run_command(
+        &mut self,
+        mesh: &mut Mesh,
+        step: &Step,
+        command: &Command,
+        matched: &[usize],
+        tally: &mut Tally,
+    ) -> Result<Selection, RunError> {
+        let generation = step.uid + 1;
+        let fail = |m: String| step_error(step, RunErrorKind::Failed, m);
+        let call = self.calls.last().copied();
+        let reference = self.reference();
+        let mut made = Selection::new();
+        let mut plans: Vec<Plan> = Vec::with_capacity(matched.len());
+        for &i in matched {
+            if let Some(call) = call {
+                if let Some(products) = self.applied.get(&(call, step.uid, i as u32)) {
+                    made.extend(products);
+                    tally.shared += 1;
+                    continue;
+                }
+            }
+            if let Some(p) = &command.probability {
+                let p = self.eval(mesh, step, generation, i, step.domain, p);
+                if !(0.0..=1.0).contains(&p) {
+                    return Err(fail(format!(
+                        "probability evaluates to {p} for {} {i}; it must be in [0, 1]",
+                        step.domain
+                    )));
+                }
+                if random::unit(self.seed, step.key, i as u64, 0) >= p {
+                    tally.skipped += 1;
+                    continue;
+                }
+            }
+            let (seed, key) = (self.seed, step.key);
+            let spread = |draw: u64| 2.0 * random::unit(seed, key, i as u64, draw) - 1.0;
+            let mut plan = {
+                let mut eval = |c: &Condition| self.eval(mesh, step, generation, i, step.domain, c);
+                commands::plan(mesh, command, i, &reference, &mut eval, &spread)
+            }
+            .map_err(|m| fail(format!("{} {i}: {m}", step.domain)))?;
+            if command.kind == CommandKind::SplitFace {
+                let ring: Vec<VertId> = mesh.face_verts(FaceId::from_index(i)).collect();
+                plan.nodes = match &command.nodes {
+                    None => ring,
+                    Some(c) => ring
+                        .into_iter()
+                        .filter(|v| {
+                            self.eval(mesh, step, generation, v.index(), Domain::Vert, c) != 0.0
+                        })
+                        .collect(),
+                };
+            }
+            plans.push(plan);
+        }
+        tally.applied = plans.len();
+        // Each plan adds at most a node, a few edges and faces per side.
+        let coming: usize = plans.iter().map(|p| 4 + 2 * p.nodes.len()).sum();
+        self.check_size(mesh, step, coming)?;
+        let mut order: Vec<usize> = (0..plans.len()).collect();
+        if let Some(shuffle) = self.shuffle {
+            // Testing hook: a seeded Fisher–Yates shuffle.
+            for k in (1..order.len()).rev() {
+                let j = random::int_in(shuffle, 0, k as u64, 0, 0, k as i64) as usize;
+                order.swap(k, j);
+            }
+        }
+        for k in order {
+            let plan = &plans[k];
+            let products = commands::apply(mesh, command.kind, plan, i64::from(generation))
+                .map_err(|m| fail(format!("{} {}: {m}", step.domain, plan.target)))?;
+            if let Some(call) = call {
+                self.applied
+                    .insert((call, step.uid, plan.target as u32), products.clone());
+            }
+            made.extend(&products);
+        }
+        made.normalize();
+        Ok(made)
+    }
+
+    /// Runs a compound command: one scope per matched initial primitive,
+    /// all planned on the generation the command reads, then run in
+    /// ascending id order with the scope on top of the stack.
+    fn run_compound(
+        &mut self,
+        mesh: &mut Mesh,
+        step: &Step,
+        index: usize,
+        frame: &FrameParams,
+        matched: &[usize],
+    ) -> Result<Selection, RunError> {
+        let generation = step.uid + 1;
+        let compound = &self.program.compounds[index];
+        let parent = self.reference();
+        let mut scopes = Vec::with_capacity(matched.len());
+        for &i in matched {
+            let measure = Measure::of(mesh, step.domain, i);
+            let mut value = |c: &Option<Condition>, default: f64| match c {
+                Some(c) => self.eval(mesh, step, generation, i, step.domain, c),
+                None => default,
+            };
+            let length = value(&frame.length, 1.0);
+            let radius = value(&frame.radius, 1.0);
+            let mut vector = |v: &Option<Box<[Condition; 3]>>, default: DVec3| match v {
+                Some(v) => DVec3::new(
+                    self.eval(mesh, step, generation, i, step.domain, &v[0]),
+                    self.eval(mesh, step, generation, i, step.domain, &v[1]),
+                    self.eval(mesh, step, generation, i, step.domain, &v[2]),
+                ),
+                None => default,
+            };
+            let heading = vector(&frame.heading, DVec3::X);
+            let up = vector(&frame.up, DVec3::Z);
+            // Table 3.2: a relative compound scales with its initial
+            // primitive, an absolute one with the enclosing reference.
+            let (basis, length_unit, radius_unit) = if frame.relative {
+                let initial_radius = match step.domain {
+                    Domain::Vert => graph::radius(mesh, VertId::from_index(i)),
+                    Domain::Edge => {
+                        graph::mean_radius(mesh, mesh.edge_verts(EdgeId::from_index(i)).into_iter())
+                    }
+                    Domain::Face => {
+                        graph::mean_radius(mesh, mesh.face_verts(FaceId::from_index(i)))
+                    }
+                };
+                (measure.frame, measure.size, initial_radius)
+            } else {
+                (parent.frame, parent.length, parent.radius)
+            };
+            let reference = Reference {
+                frame: Frame::from_heading_up(basis.to_world(heading), basis.to_world(up)),
+                length: length * length_unit,
+                radius: radius * radius_unit,
+            };
+            if !(reference.length.is_finite() && reference.radius.is_finite()) {
+                return Err(step_error(
+                    step,
+                    RunErrorKind::Failed,
+                    format!(
+                        "compound `{}` on {} {i}: length or radius is not finite",
+                        compound.name, step.domain
+                    ),
+                ));
+            }
+            scopes.push(Scope::new(mesh, step.domain, i, reference, measure));
+        }
+        let mut made = Selection::new();
+        for scope in scopes {
+            let before = scope.clone();
+            self.scopes.push(scope);
+            self.calls.push(step.uid);
+            let mut result = Ok(());
+            for inner in &compound.steps {
+                result = self.run_step(mesh, inner);
+                if result.is_err() {
+                    break;
+                }
+            }
+            self.calls.pop();
+            let scope = self.scopes.pop().expect("pushed above");
+            result?;
+            made.extend(&scope.added_since(&before));
+        }
+        made.normalize();
+        Ok(made)
     }
 
     fn scalar(&self, e: &crate::rules::expr::Expr) -> f64 {
@@ -261,7 +620,6 @@ impl Runner<'_> {
             Offset::Normal(d) => ExtrudeOffset::Normal(self.scalar(d)),
         }
     }
-
     fn apply(&self, mesh: &mut Mesh, step: &Step, selected: &[usize]) -> Result<Selection, String> {
         use ops::{create, delete, extrude, faces, inset, merge, select, split, transform};
         let by_domain = selection_of(step.domain, selected);
@@ -289,7 +647,16 @@ impl Runner<'_> {
         let faces_list = &by_domain.faces;
         let e = |err: ops::OpError| err.to_string();
         Ok(match &step.op {
-            Op::Vertex { at } => create::create_vert(mesh, self.vector(at)).map_err(e)?,
+            Op::Vertex { at, radius } => {
+                let made = create::create_vert(mesh, self.vector(at)).map_err(e)?;
+                if let Some(r) = radius {
+                    graph::ensure_layers(mesh);
+                    for &v in &made.verts {
+                        graph::set_radius(mesh, v, self.scalar(r));
+                    }
+                }
+                made
+            }
             Op::Circle {
                 segments,
                 radius,
@@ -463,6 +830,34 @@ impl Runner<'_> {
                 Vec::new(),
                 select::region_reduce(mesh, faces_list, *by),
             ),
+            Op::Skin {
+                sides,
+                radius,
+                joints,
+                keep_wires,
+            } => {
+                let options = ops::skin::SkinOptions {
+                    sides: self.count(sides, "sides")?,
+                    default_radius: self.scalar(radius),
+                    joints: *joints,
+                };
+                let tubes = ops::skin::skin_wire_edges(mesh, &options).map_err(e)?;
+                if !*keep_wires {
+                    let wires: Vec<EdgeId> =
+                        mesh.edge_ids().filter(|&w| mesh.is_wire_edge(w)).collect();
+                    let wire_selection = Selection::from_parts(Vec::new(), wires, Vec::new());
+                    delete::delete(mesh, &wire_selection, delete::DeleteMode::All).map_err(e)?;
+                }
+                let map = mesh.join_mesh(&tubes);
+                Selection::from_parts(
+                    map.verts.into_iter().flatten().collect(),
+                    map.edges.into_iter().flatten().collect(),
+                    map.faces.into_iter().flatten().collect(),
+                )
+            }
+            Op::Command(_) | Op::Compound { .. } => {
+                unreachable!("commands and compounds run in run_step")
+            }
         })
     }
 }

@@ -36,6 +36,144 @@ pub struct RuleFile {
     pub start: Option<Step>,
     #[serde(default, rename = "step", alias = "steps")]
     pub steps: Vec<Step>,
+    /// Named command sequences (`[rules.NAME]`), included by `rule = "NAME"`.
+    #[serde(default)]
+    pub rules: Named<RuleDef>,
+    /// Compound commands (`[compound.NAME]`), applied by `compound = "NAME"`.
+    #[serde(default)]
+    pub compound: Named<CompoundDef>,
+}
+
+/// A table of named definitions, in file order.
+#[derive(Debug)]
+pub struct Named<T>(pub Vec<(Spanned<String>, T)>);
+
+impl<T> Default for Named<T> {
+    fn default() -> Self {
+        Named(Vec::new())
+    }
+}
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Named<T> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct NamedVisitor<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> Visitor<'de> for NamedVisitor<T> {
+            type Value = Named<T>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a table of named definitions")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Named<T>, A::Error> {
+                let mut out = Vec::new();
+                while let Some(key) = map.next_key::<Spanned<String>>()? {
+                    out.push((key, map.next_value()?));
+                }
+                Ok(Named(out))
+            }
+        }
+        // RON writes these as a struct: `rules: (grow: (step: [...]))`.
+        d.deserialize_struct("Named", &[], NamedVisitor(std::marker::PhantomData))
+    }
+}
+
+/// `[rules.NAME]`: a named list of steps.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RuleDef {
+    #[serde(default, rename = "step", alias = "steps")]
+    pub steps: Vec<Step>,
+}
+
+/// `[compound.NAME]`: a compound command (thesis 003 §3.3).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompoundDef {
+    /// Kind of the initial primitive.
+    pub on: Spanned<DomainName>,
+    /// Condition that selects initial primitives.
+    pub select: Option<Spanned<String>>,
+    /// The reference frame and sizes the contained commands build on.
+    pub relative: Option<Spanned<bool>>,
+    pub length: Option<Value>,
+    pub radius: Option<Value>,
+    pub heading: Option<Vector>,
+    pub up: Option<Vector>,
+    #[serde(default, rename = "step", alias = "steps")]
+    pub steps: Vec<Step>,
+}
+
+impl CompoundDef {
+    pub fn frame(&self) -> FrameSpec {
+        FrameSpec {
+            relative: self.relative.clone(),
+            length: self.length.clone(),
+            radius: self.radius.clone(),
+            heading: self.heading.clone(),
+            up: self.up.clone(),
+        }
+    }
+}
+
+/// A compound command's own parameters (Table 3.2): absolute, or relative
+/// to its initial primitive.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FrameSpec {
+    pub relative: Option<Spanned<bool>>,
+    pub length: Option<Value>,
+    pub radius: Option<Value>,
+    pub heading: Option<Vector>,
+    pub up: Option<Vector>,
+}
+
+/// `compound = "NAME"` or `compound = { name = "NAME", length = 2, … }`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompoundCall {
+    pub name: Spanned<String>,
+    pub frame: FrameSpec,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CompoundCallTable {
+    name: Spanned<String>,
+    relative: Option<Spanned<bool>>,
+    length: Option<Value>,
+    radius: Option<Value>,
+    heading: Option<Vector>,
+    up: Option<Vector>,
+}
+
+impl<'de> Deserialize<'de> for CompoundCall {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct CallVisitor;
+        impl<'de> Visitor<'de> for CallVisitor {
+            type Value = CompoundCall;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(
+                    "a compound name, or a table { name = \"NAME\", length = …, heading = […] }",
+                )
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<CompoundCall, E> {
+                Ok(CompoundCall {
+                    name: Spanned::new(v.to_owned()),
+                    frame: FrameSpec::default(),
+                })
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<CompoundCall, A::Error> {
+                let t = CompoundCallTable::deserialize(de::value::MapAccessDeserializer::new(map))?;
+                Ok(CompoundCall {
+                    name: t.name,
+                    frame: FrameSpec {
+                        relative: t.relative,
+                        length: t.length,
+                        radius: t.radius,
+                        heading: t.heading,
+                        up: t.up,
+                    },
+                })
+            }
+        }
+        d.deserialize_any(CallVisitor)
+    }
 }
 
 /// A number or an expression string.
@@ -246,6 +384,12 @@ pub struct Step {
     pub on: Option<Spanned<DomainName>>,
     /// The operator and its key (`None` when the step names none).
     pub op: Option<(Spanned<String>, Spanned<Operation>)>,
+    /// Include a named rule's steps here instead of an operator.
+    pub rule: Option<Spanned<String>>,
+    /// Apply a compound command instead of an operator.
+    pub compound: Option<(Spanned<String>, Spanned<CompoundCall>)>,
+    /// Run the step (or the included rule) this many times in a row.
+    pub repeat: Option<Spanned<i64>>,
     /// Keys that are neither step fields nor operators, and operators past
     /// the first: reported by the compiler at their exact position.
     pub stray_keys: Vec<Spanned<String>>,
@@ -285,6 +429,12 @@ pub enum Operation {
     Mirror(MirrorOp),
     RegionExtend(RegionOp),
     RegionReduce(RegionOp),
+    CreateEdge(CommandOp),
+    SplitEdge(CommandOp),
+    CreateFace(CommandOp),
+    SplitFace(CommandOp),
+    EditNode(CommandOp),
+    Skin(SkinOp),
 }
 
 /// Operator keys, for "unknown operator" messages and the documentation.
@@ -318,9 +468,66 @@ pub const OPERATOR_NAMES: &[&str] = &[
     "mirror",
     "region_extend",
     "region_reduce",
+    "create_edge",
+    "split_edge",
+    "create_face",
+    "split_face",
+    "edit_node",
+    "skin",
 ];
 
-const STEP_KEYS: &[&str] = &["name", "select", "from", "on"];
+/// The G³ commands among the operators (thesis 003 §2.4.5).
+pub const COMMAND_NAMES: &[&str] = &[
+    "create_edge",
+    "split_edge",
+    "create_face",
+    "split_face",
+    "edit_node",
+];
+
+pub const STEP_KEYS: &[&str] = &["name", "select", "from", "on", "rule", "compound", "repeat"];
+
+/// Parameters of a G³ command (thesis 003 §2.4.3): every value may be an
+/// expression over parameters and the matched primitive's properties.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CommandOp {
+    pub length: Option<Value>,
+    pub radius: Option<Value>,
+    /// Heading H of the new edge, in the basis of the reference frame.
+    pub heading: Option<Vector>,
+    /// Up U, completing the frame (L = U × H).
+    pub up: Option<Vector>,
+    /// Fixed turtle rotations, degrees: about U, about L, about H.
+    pub turn: Option<Value>,
+    pub pitch: Option<Value>,
+    pub roll: Option<Value>,
+    /// Variations σ: uniform in (−σ, σ) added per primitive.
+    pub vary_length: Option<Value>,
+    pub vary_radius: Option<Value>,
+    pub vary_turn: Option<Value>,
+    pub vary_pitch: Option<Value>,
+    pub vary_roll: Option<Value>,
+    /// Chance of applying to each matched primitive.
+    pub probability: Option<Value>,
+    /// Relative to the preceding primitive instead of the reference frame.
+    pub relative: Option<bool>,
+    /// `split_face` only: secondary condition choosing the face's nodes.
+    pub nodes: Option<Spanned<String>>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkinOp {
+    /// Sides of the tube cross-section.
+    pub sides: Option<Value>,
+    /// Radius for nodes without one.
+    pub radius: Option<Value>,
+    /// Spheres at joints (true).
+    pub joints: Option<bool>,
+    /// Keep the wire edges next to the tubes (false).
+    pub keep_wires: Option<bool>,
+}
 
 #[derive(Debug, Clone, PartialEq, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -330,6 +537,8 @@ pub struct Empty {}
 #[serde(deny_unknown_fields)]
 pub struct VertexOp {
     pub at: Option<Vector>,
+    /// Node radius (the `radius` layer).
+    pub radius: Option<Value>,
 }
 
 #[derive(Debug, Clone, PartialEq, Default, Deserialize)]
@@ -506,6 +715,9 @@ impl<'de> Deserialize<'de> for Step {
                     from: None,
                     on: None,
                     op: None,
+                    rule: None,
+                    compound: None,
+                    repeat: None,
                     stray_keys: Vec::new(),
                 };
                 while let Some(key) = map.next_key::<Spanned<String>>()? {
@@ -514,6 +726,9 @@ impl<'de> Deserialize<'de> for Step {
                         "select" => step.select = Some(map.next_value()?),
                         "from" => step.from = Some(map.next_value()?),
                         "on" => step.on = Some(map.next_value()?),
+                        "rule" => step.rule = Some(map.next_value()?),
+                        "repeat" => step.repeat = Some(map.next_value()?),
+                        "compound" => step.compound = Some((key, map.next_value()?)),
                         other => match next_operation(&mut map, other)? {
                             Some(operation) if step.op.is_none() => {
                                 step.op = Some((key, operation))
@@ -575,6 +790,12 @@ fn next_operation<'de, A: MapAccess<'de>>(
         "mirror" => op!(Mirror, MirrorOp),
         "region_extend" => op!(RegionExtend, RegionOp),
         "region_reduce" => op!(RegionReduce, RegionOp),
+        "create_edge" => op!(CreateEdge, CommandOp),
+        "split_edge" => op!(SplitEdge, CommandOp),
+        "create_face" => op!(CreateFace, CommandOp),
+        "split_face" => op!(SplitFace, CommandOp),
+        "edit_node" => op!(EditNode, CommandOp),
+        "skin" => op!(Skin, SkinOp),
         _ => {
             map.next_value::<de::IgnoredAny>()?;
             return Ok(None);

@@ -13,7 +13,8 @@ use super::ast::{self, DomainName, Operation, ParamSpec, RuleFile, Scalar as Ast
 use super::diagnostic::{find_key, find_literal, offset_of, RuleError, SourceFile};
 use super::expr::{Expr, ExprError};
 use super::program::{
-    Condition, Offset, Op, Param, ParamKind, Program, Property, Scalar, Step, Vector,
+    Command, CommandKind, Compound, Condition, FrameParams, Offset, Op, Param, ParamKind, Program,
+    Property, Scalar, Step, Vector,
 };
 use super::random::stream_key;
 use super::spanned::{with_format, SourceFormat, Spanned};
@@ -107,9 +108,15 @@ const PROPERTY_NAMES: &[&str] = &[
     "area",
     "sides",
     "degree",
+    "edges",
     "faces",
     "neighbors",
     "vert_neighbors",
+    "age",
+    "generation",
+    "radius",
+    "out_edges",
+    "in_edges",
 ];
 
 fn axis(c: &str) -> Option<usize> {
@@ -123,17 +130,27 @@ fn axis(c: &str) -> Option<usize> {
 
 /// The property a name denotes for elements of `domain`, if any.
 fn property_for(domain: Domain, name: &str) -> Option<Property> {
+    use Domain::{Edge as E, Face as F, Vert as V};
     use Property::*;
     let simple = match (domain, name) {
         (_, "id") => Some(Id),
         (_, "random") => Some(Random),
-        (Domain::Edge, "length") => Some(Length),
-        (Domain::Face, "area") => Some(Area),
-        (Domain::Face, "sides") => Some(Sides),
-        (Domain::Vert, "degree") => Some(Degree),
-        (Domain::Vert | Domain::Edge, "faces") => Some(FaceCount),
-        (Domain::Face, "neighbors") => Some(EdgeNeighbors),
-        (Domain::Face, "vert_neighbors") => Some(VertNeighbors),
+        (_, "age") => Some(Age),
+        (_, "generation") => Some(Generation),
+        (_, "radius") => Some(Radius),
+        (E, "length") => Some(Length),
+        (F, "area") => Some(Area),
+        (F, "sides" | "edges") => Some(Sides),
+        (V, "degree" | "edges") => Some(Degree),
+        (V | E, "faces") => Some(FaceCount),
+        (V | E, "out_edges") => Some(OutEdges),
+        (V | E, "in_edges") => Some(InEdges),
+        (E, "neighbors") => Some(EdgeNeighborEdges),
+        (F, "neighbors") => Some(EdgeNeighbors),
+        (F, "vert_neighbors") => Some(VertNeighbors),
+        (V | E, "pre.length") => Some(PreLength),
+        (E, "rel.length") => Some(RelativeLength),
+        (F, "rel.area") => Some(RelativeArea),
         _ => None,
     };
     if simple.is_some() {
@@ -142,12 +159,15 @@ fn property_for(domain: Domain, name: &str) -> Option<Property> {
     let (base, component) = name.split_once('.')?;
     let i = axis(component)?;
     match (domain, base) {
-        (Domain::Vert, "pos") => Some(Position(i)),
-        (Domain::Vert | Domain::Face, "normal") => Some(Normal(i)),
-        (Domain::Edge | Domain::Face, "center") => Some(Center(i)),
-        (Domain::Edge, "dir") => Some(Direction(i)),
-        (Domain::Edge | Domain::Face, "min") => Some(Min(i)),
-        (Domain::Edge | Domain::Face, "max") => Some(Max(i)),
+        (V, "pos") => Some(Position(i)),
+        (V | F, "normal") => Some(Normal(i)),
+        (E | F, "center") => Some(Center(i)),
+        (E, "dir") => Some(Direction(i)),
+        (E | F, "min") => Some(Min(i)),
+        (E | F, "max") => Some(Max(i)),
+        (E, "pre") => Some(PrePosition(i)),
+        (E, "post") => Some(PostPosition(i)),
+        (_, "rel") => Some(Relative(i)),
         _ => None,
     }
 }
@@ -218,6 +238,48 @@ impl<'a> Compiler<'a> {
             }
             e
         })
+    }
+
+    /// A per-primitive value: a number, or an expression over parameters
+    /// and the properties of `domain`'s primitives.
+    fn property_scalar(&self, domain: Domain, value: &ast::Value) -> Result<Condition, RuleError> {
+        match &value.value {
+            AstScalar::Number(x) => Ok(Condition {
+                expr: self.number(*x, value.span.clone())?,
+                properties: Vec::new(),
+            }),
+            AstScalar::Expr(text) => self.condition(
+                domain,
+                &Spanned {
+                    value: text.clone(),
+                    span: value.span.clone(),
+                },
+            ),
+        }
+    }
+
+    fn property_vector(
+        &self,
+        domain: Domain,
+        v: &ast::Vector,
+    ) -> Result<[Condition; 3], RuleError> {
+        match &v.value {
+            ast::VectorSpec::Components(parts) => Ok([
+                self.property_scalar(domain, &parts[0])?,
+                self.property_scalar(domain, &parts[1])?,
+                self.property_scalar(domain, &parts[2])?,
+            ]),
+            ast::VectorSpec::Uniform(s) => {
+                let one = self.property_scalar(
+                    domain,
+                    &Spanned {
+                        value: s.clone(),
+                        span: v.span.clone(),
+                    },
+                )?;
+                Ok([one.clone(), one.clone(), one])
+            }
+        }
     }
 
     fn scalar(&self, value: &ast::Value) -> Result<Scalar, RuleError> {
@@ -313,6 +375,7 @@ impl<'a> Compiler<'a> {
 /// indexed directly: slot = param_count + property_index.
 pub fn property_index(p: Property) -> u32 {
     use Property::*;
+    let vector = |base: u32, i: usize| base + i as u32;
     match p {
         Id => 0,
         Random => 1,
@@ -323,45 +386,74 @@ pub fn property_index(p: Property) -> u32 {
         FaceCount => 6,
         EdgeNeighbors => 7,
         VertNeighbors => 8,
-        Position(i) => 9 + i as u32,
-        Center(i) => 12 + i as u32,
-        Normal(i) => 15 + i as u32,
-        Min(i) => 18 + i as u32,
-        Max(i) => 21 + i as u32,
-        Direction(i) => 24 + i as u32,
+        Age => 9,
+        Generation => 10,
+        Radius => 11,
+        OutEdges => 12,
+        InEdges => 13,
+        EdgeNeighborEdges => 14,
+        PreLength => 15,
+        RelativeLength => 16,
+        RelativeArea => 17,
+        Position(i) => vector(18, i),
+        Center(i) => vector(21, i),
+        Normal(i) => vector(24, i),
+        Min(i) => vector(27, i),
+        Max(i) => vector(30, i),
+        Direction(i) => vector(33, i),
+        PrePosition(i) => vector(36, i),
+        PostPosition(i) => vector(39, i),
+        Relative(i) => vector(42, i),
     }
 }
 
 /// Number of property slots after the parameters.
-pub const PROPERTY_SLOTS: usize = 27;
+pub const PROPERTY_SLOTS: usize = 45;
 
 fn property_from_index(i: u32) -> Property {
     use Property::*;
-    let c = |base: u32| (i - base) as usize;
-    match i {
-        0 => Id,
-        1 => Random,
-        2 => Length,
-        3 => Area,
-        4 => Sides,
-        5 => Degree,
-        6 => FaceCount,
-        7 => EdgeNeighbors,
-        8 => VertNeighbors,
-        9..=11 => Position(c(9)),
-        12..=14 => Center(c(12)),
-        15..=17 => Normal(c(15)),
-        18..=20 => Min(c(18)),
-        21..=23 => Max(c(21)),
-        _ => Direction(c(24)),
+    const SCALARS: [Property; 18] = [
+        Id,
+        Random,
+        Length,
+        Area,
+        Sides,
+        Degree,
+        FaceCount,
+        EdgeNeighbors,
+        VertNeighbors,
+        Age,
+        Generation,
+        Radius,
+        OutEdges,
+        InEdges,
+        EdgeNeighborEdges,
+        PreLength,
+        RelativeLength,
+        RelativeArea,
+    ];
+    if let Some(&p) = SCALARS.get(i as usize) {
+        return p;
+    }
+    let c = ((i - 18) % 3) as usize;
+    match (i - 18) / 3 {
+        0 => Position(c),
+        1 => Center(c),
+        2 => Normal(c),
+        3 => Min(c),
+        4 => Max(c),
+        5 => Direction(c),
+        6 => PrePosition(c),
+        7 => PostPosition(c),
+        _ => Relative(c),
     }
 }
 
 fn property_help(domain: Domain) -> &'static str {
     match domain {
-        Domain::Vert => "id, random, pos.x/y/z, normal.x/y/z, degree, faces",
-        Domain::Edge => "id, random, length, center.x/y/z, dir.x/y/z, min.x/y/z, max.x/y/z, faces",
-        Domain::Face => "id, random, area, sides, neighbors, vert_neighbors, center.x/y/z, normal.x/y/z, min.x/y/z, max.x/y/z",
+        Domain::Vert => "id, random, age, generation, radius, pos.x/y/z, rel.x/y/z, normal.x/y/z, degree (= edges), faces, out_edges, in_edges, pre.length",
+        Domain::Edge => "id, random, age, generation, radius, length, rel.length, pre.length, center.x/y/z, rel.x/y/z, dir.x/y/z, pre.x/y/z, post.x/y/z, min.x/y/z, max.x/y/z, faces, neighbors, out_edges, in_edges",
+        Domain::Face => "id, random, age, generation, radius, area, rel.area, sides (= edges), neighbors, vert_neighbors, center.x/y/z, rel.x/y/z, normal.x/y/z, min.x/y/z, max.x/y/z",
     }
 }
 
@@ -382,6 +474,8 @@ fn allowed_domains(op: &Operation) -> &'static [Domain] {
         Operation::Delete(_) | Operation::Duplicate(_) | Operation::Mirror(_) => {
             &[Face, Edge, Vert]
         }
+        Operation::CreateEdge(_) | Operation::EditNode(_) => &[Vert],
+        Operation::SplitEdge(_) | Operation::CreateFace(_) | Operation::Skin(_) => &[Edge],
         _ => &[Face],
     }
 }
@@ -398,6 +492,14 @@ fn is_create(op: &Operation) -> bool {
             | Operation::Cone(_)
             | Operation::Import(_)
     )
+}
+
+fn plural(d: Domain) -> &'static str {
+    match d {
+        Domain::Vert => "vertices",
+        Domain::Edge => "edges",
+        Domain::Face => "faces",
+    }
 }
 
 fn domain_of(name: DomainName) -> Domain {
@@ -512,6 +614,16 @@ pub fn compile(
     }
     let params = order_params(&compiler, &declared, params)?;
 
+    let mut expander = Expander {
+        c: &compiler,
+        ast,
+        base_dir,
+        next_uid: 0,
+        rule_stack: Vec::new(),
+        compound_stack: Vec::new(),
+        compounds: (0..ast.compound.0.len()).map(|_| None).collect(),
+        uses_graph: false,
+    };
     let mut steps: Vec<Step> = Vec::new();
     if let Some(start) = &ast.start {
         if let Some((key, op)) = &start.op {
@@ -519,17 +631,42 @@ pub fn compile(
                 return Err(compiler.error(compiler.span_of(key, &key.value), format!("`[start]` must be a create operator (vertex, circle, grid, cube, uv_sphere, cylinder, cone, import), not `{}`", key.value)));
             }
         }
-        steps.push(compile_step(&compiler, start, "start", &steps, base_dir)?);
+        if start.rule.is_some() || start.compound.is_some() || start.repeat.is_some() {
+            return Err(compiler.error(
+                None,
+                "`[start]` takes one create operator, not `rule`, `compound` or `repeat`",
+            ));
+        }
+        expander.expand(std::slice::from_ref(start), "", &mut steps, Some("start"))?;
     }
-    for (i, step) in ast.steps.iter().enumerate() {
-        let default_name = format!("step{}", i + 1);
-        steps.push(compile_step(
-            &compiler,
-            step,
-            &default_name,
-            &steps,
-            base_dir,
-        )?);
+    expander.expand(&ast.steps, "", &mut steps, None)?;
+    let uses_graph = expander.uses_graph;
+    let step_count = expander.next_uid as usize;
+    let mut compounds = Vec::with_capacity(expander.compounds.len());
+    for (i, compound) in expander.compounds.into_iter().enumerate() {
+        match compound {
+            Some(c) => compounds.push(c),
+            // Never called: still compiled, so its errors are reported.
+            None => {
+                let mut check = Expander {
+                    c: &compiler,
+                    ast,
+                    base_dir,
+                    next_uid: step_count as u32,
+                    rule_stack: Vec::new(),
+                    compound_stack: Vec::new(),
+                    compounds: (0..ast.compound.0.len()).map(|_| None).collect(),
+                    uses_graph: false,
+                };
+                check.compile_compound(i, None)?;
+                compounds.push(Compound {
+                    name: ast.compound.0[i].0.value.clone(),
+                    domain: Domain::Face,
+                    select: None,
+                    steps: Vec::new(),
+                });
+            }
+        }
     }
 
     let mut hash_input = file.text.clone();
@@ -544,6 +681,9 @@ pub fn compile(
         param_names: compiler.param_names.clone(),
         params,
         steps,
+        compounds,
+        step_count,
+        uses_graph,
     })
 }
 
@@ -725,60 +865,117 @@ fn param_exprs(p: &Param) -> impl Iterator<Item = &Expr> {
     v.into_iter()
 }
 
-fn compile_step(
-    c: &Compiler,
-    step: &ast::Step,
-    default_name: &str,
-    earlier: &[Step],
-    base_dir: &Path,
-) -> Result<Step, RuleError> {
-    if let Some(stray) = step.stray_keys.first() {
-        let span = c.span_of(stray, &stray.value);
-        return Err(match &step.op {
-            Some((key, _)) if ast::OPERATOR_NAMES.contains(&stray.value.as_str()) => c
-                .error(
-                    span,
-                    format!(
-                        "a step runs one operator, but this one has both `{}` and `{}`",
-                        key.value, stray.value
-                    ),
-                )
-                .with_help("split them into two steps"),
-            _ => {
-                let e = c.error(span, format!("unknown key `{}` in a step", stray.value));
-                match closest(&stray.value) {
-                    Some(best) => e.with_help(format!("did you mean `{best}`?")),
-                    None => e.with_help(format!(
-                        "a step takes `name`, `select`, `from`, `on` and one operator: {}",
-                        ast::OPERATOR_NAMES.join(", ")
-                    )),
+/// Turns lists of AST steps into program steps: includes rules, unrolls
+/// repeats, compiles compounds once, numbers every step (its uid) in
+/// program order and names it by its path.
+struct Expander<'c, 'a> {
+    c: &'c Compiler<'a>,
+    ast: &'c RuleFile,
+    base_dir: &'c Path,
+    next_uid: u32,
+    /// Rules being included, for cycle detection.
+    rule_stack: Vec<usize>,
+    compound_stack: Vec<usize>,
+    compounds: Vec<Option<Compound>>,
+    uses_graph: bool,
+}
+
+/// Most steps a rule file may unroll to: a guard against `repeat = 1e9`.
+const MAX_STEPS: u32 = 1_000_000;
+
+impl Expander<'_, '_> {
+    /// Expands `steps` into `out`. `prefix` is prepended to every path;
+    /// `forced_name` names a lone step (the start).
+    fn expand(
+        &mut self,
+        steps: &[ast::Step],
+        prefix: &str,
+        out: &mut Vec<Step>,
+        forced_name: Option<&str>,
+    ) -> Result<(), RuleError> {
+        let c = self.c;
+        // Local step names → uids of their copies, for `from`.
+        let mut local: Vec<(String, Vec<u32>)> = Vec::new();
+        let mut explicit: Vec<&str> = Vec::new();
+        for (i, step) in steps.iter().enumerate() {
+            check_stray_keys(c, step)?;
+            let name = match (&step.name, forced_name, &step.rule) {
+                (Some(n), _, _) => {
+                    let span = c.content_span(n, &n.value);
+                    if n.value.is_empty() || n.value.contains(['/', '#']) {
+                        return Err(c.error(
+                            span,
+                            "step names must be non-empty and contain no `/` or `#`",
+                        ));
+                    }
+                    if explicit.contains(&n.value.as_str()) {
+                        return Err(c.error(span, format!("two steps are named `{}`", n.value)));
+                    }
+                    explicit.push(&n.value);
+                    n.value.clone()
+                }
+                (None, Some(forced), _) => forced.to_owned(),
+                (None, None, Some(rule)) => rule.value.clone(),
+                (None, None, None) => format!("step{}", i + 1),
+            };
+            let repeat = match &step.repeat {
+                None => 1,
+                Some(r) => {
+                    if !(1..=i64::from(MAX_STEPS)).contains(&r.value) {
+                        return Err(c.error(
+                            c.span_of(r, "repeat"),
+                            format!("`repeat` must be between 1 and {MAX_STEPS}"),
+                        ));
+                    }
+                    r.value as u32
+                }
+            };
+            let mut copies = Vec::new();
+            for k in 0..repeat {
+                let path = if repeat > 1 {
+                    format!("{prefix}{name}#{}", k + 1)
+                } else {
+                    format!("{prefix}{name}")
+                };
+                if let Some(rule) = &step.rule {
+                    self.include_rule(step, rule, &format!("{path}/"), out)?;
+                } else {
+                    if self.next_uid >= MAX_STEPS {
+                        return Err(c.error(
+                            step.repeat.as_ref().and_then(|r| c.span_of(r, "repeat")),
+                            format!("the rules unroll to more than {MAX_STEPS} steps"),
+                        ));
+                    }
+                    let uid = self.next_uid;
+                    self.next_uid += 1;
+                    let compiled = self.compile_step(step, uid, &path, &local)?;
+                    out.push(compiled);
+                    copies.push(uid);
                 }
             }
-        });
-    }
-    let Some((op_key, op)) = &step.op else {
-        return Err(c
-            .error(None, format!("step `{default_name}` has no operator"))
-            .with_help(
-                "add one operator key, such as `cube = {}` or `extrude_faces = { distance = 1 }`",
-            ));
-    };
-    let op_span = c.span_of(op_key, &op_key.value);
-    let name = match &step.name {
-        Some(n) => {
-            let span = c.content_span(n, &n.value);
-            if n.value.is_empty() || n.value.contains('/') {
-                return Err(c.error(span, "step names must be non-empty and contain no `/`"));
+            if !copies.is_empty() {
+                local.retain(|(n, _)| *n != name);
+                local.push((name, copies));
             }
-            if earlier.iter().any(|s| s.name == n.value) {
-                return Err(c.error(span, format!("two steps are named `{}`", n.value)));
-            }
-            n.value.clone()
         }
-        None => default_name.to_owned(),
-    };
-    let creates = is_create(&op.value);
-    if creates {
+        Ok(())
+    }
+
+    fn include_rule(
+        &mut self,
+        step: &ast::Step,
+        rule: &Spanned<String>,
+        prefix: &str,
+        out: &mut Vec<Step>,
+    ) -> Result<(), RuleError> {
+        let c = self.c;
+        let span = c.content_span(rule, &rule.value);
+        if step.op.is_some() || step.compound.is_some() {
+            return Err(c.error(
+                span,
+                "a step includes a rule or runs an operator or a compound, not both",
+            ));
+        }
         for (present, key) in [
             (step.select.is_some(), "select"),
             (step.from.is_some(), "from"),
@@ -786,70 +983,426 @@ fn compile_step(
         ] {
             if present {
                 return Err(c.error(
-                    op_span.clone(),
-                    format!("`{}` creates geometry and takes no `{key}`", op_key.value),
+                    span,
+                    format!(
+                        "a step that includes a rule takes no `{key}` (put it on the rule's steps)"
+                    ),
+                ));
+            }
+        }
+        let names: Vec<&str> = self
+            .ast
+            .rules
+            .0
+            .iter()
+            .map(|r| r.0.value.as_str())
+            .collect();
+        let Some(index) = names.iter().position(|n| *n == rule.value) else {
+            let e = c.error(span, format!("no rule is named `{}`", rule.value));
+            return Err(match closest_in(&rule.value, &names) {
+                Some(i) => e.with_help(format!("did you mean `{}`?", names[i])),
+                None if names.is_empty() => {
+                    e.with_help("define it as `[rules.NAME]` with a `step` list")
+                }
+                None => e.with_help(format!("rules: {}", names.join(", "))),
+            });
+        };
+        if let Some(at) = self.rule_stack.iter().position(|&r| r == index) {
+            let mut cycle: Vec<&str> = self.rule_stack[at..].iter().map(|&r| names[r]).collect();
+            cycle.push(names[index]);
+            return Err(c.error(
+                span,
+                format!("rules include each other in a cycle: {}", cycle.join(" → ")),
+            ));
+        }
+        self.rule_stack.push(index);
+        let steps = &self.ast.rules.0[index].1.steps;
+        let result = self.expand(steps, prefix, out, None);
+        self.rule_stack.pop();
+        result
+    }
+
+    /// Compiles compound `index` once; `call_span` locates a cycle error.
+    fn compile_compound(
+        &mut self,
+        index: usize,
+        call_span: Option<Range<usize>>,
+    ) -> Result<(), RuleError> {
+        let c = self.c;
+        if self.compounds[index].is_some() {
+            return Ok(());
+        }
+        let names: Vec<&str> = self
+            .ast
+            .compound
+            .0
+            .iter()
+            .map(|r| r.0.value.as_str())
+            .collect();
+        if let Some(at) = self.compound_stack.iter().position(|&r| r == index) {
+            let mut cycle: Vec<&str> = self.compound_stack[at..]
+                .iter()
+                .map(|&r| names[r])
+                .collect();
+            cycle.push(names[index]);
+            return Err(c.error(
+                call_span,
+                format!(
+                    "compound commands contain each other in a cycle: {}",
+                    cycle.join(" → ")
+                ),
+            ));
+        }
+        let (name, def) = &self.ast.compound.0[index];
+        if !is_identifier(&name.value) {
+            return Err(c.error(
+                c.span_of(name, &name.value),
+                format!(
+                    "`{}` is not a valid compound name (letters, digits, `_`)",
+                    name.value
+                ),
+            ));
+        }
+        let domain = domain_of(def.on.value);
+        let select = match &def.select {
+            Some(s) => Some(c.condition(domain, s)?),
+            None => None,
+        };
+        // Validate the definition's own parameters now (calls merge them).
+        compile_frame(c, domain, &def.frame(), &ast::FrameSpec::default())?;
+        self.compound_stack.push(index);
+        let mut steps = Vec::new();
+        let result = self.expand(&def.steps, &format!("{}/", name.value), &mut steps, None);
+        self.compound_stack.pop();
+        result?;
+        if steps.is_empty() {
+            return Err(c.error(
+                c.span_of(name, &name.value),
+                format!("compound `{}` has no steps", name.value),
+            ));
+        }
+        if let Some(s) = steps.iter().find(|s| s.op.is_create()) {
+            return Err(c.error(
+                None,
+                format!(
+                    "compound `{}`: step `{}` creates a shape from nothing; a compound only grows its initial primitive",
+                    name.value, s.name
+                ),
+            ));
+        }
+        self.compounds[index] = Some(Compound {
+            name: name.value.clone(),
+            domain,
+            select,
+            steps,
+        });
+        Ok(())
+    }
+
+    fn compile_step(
+        &mut self,
+        step: &ast::Step,
+        uid: u32,
+        path: &str,
+        earlier: &[(String, Vec<u32>)],
+    ) -> Result<Step, RuleError> {
+        let c = self.c;
+        let (op_key, op, compound_index) = match (&step.op, &step.compound) {
+            (Some(_), Some((key, _))) => {
+                return Err(c.error(
+                    c.span_of(key, "compound"),
+                    "a step runs one operator or one compound, not both",
+                ))
+            }
+            (Some((key, op)), None) => (key, Some(op), None),
+            (None, Some((key, call))) => {
+                let names: Vec<&str> = self
+                    .ast
+                    .compound
+                    .0
+                    .iter()
+                    .map(|r| r.0.value.as_str())
+                    .collect();
+                let span = call
+                    .value
+                    .name
+                    .span
+                    .clone()
+                    .or_else(|| call.span.clone())
+                    .or_else(|| find_literal(&c.file.text, &call.value.name.value));
+                let Some(index) = names.iter().position(|n| *n == call.value.name.value) else {
+                    let e = c.error(
+                        span,
+                        format!("no compound command is named `{}`", call.value.name.value),
+                    );
+                    return Err(match closest_in(&call.value.name.value, &names) {
+                        Some(i) => e.with_help(format!("did you mean `{}`?", names[i])),
+                        None if names.is_empty() => e.with_help(
+                            "define it as `[compound.NAME]` with `on` and a `step` list",
+                        ),
+                        None => e.with_help(format!("compound commands: {}", names.join(", "))),
+                    });
+                };
+                self.compile_compound(index, span)?;
+                (key, None, Some(index))
+            }
+            (None, None) => {
+                return Err(c
+                    .error(None, format!("step `{path}` has no operator"))
+                    .with_help(
+                        "add one operator key, such as `cube = {}` or `extrude_faces = { distance = 1 }`, or `rule = \"NAME\"`, or `compound = \"NAME\"`",
+                    ));
+            }
+        };
+        let op_span = c.span_of(op_key, &op_key.value);
+        let creates = op.is_some_and(|op| is_create(&op.value));
+        let whole_mesh = op.is_some_and(|op| matches!(op.value, Operation::Skin(_)));
+        if creates || whole_mesh {
+            for (present, key) in [
+                (step.select.is_some(), "select"),
+                (step.from.is_some(), "from"),
+                (step.on.is_some(), "on"),
+            ] {
+                if present {
+                    let what = if creates {
+                        "creates geometry"
+                    } else {
+                        "works on the whole mesh"
+                    };
+                    return Err(c.error(
+                        op_span.clone(),
+                        format!("`{}` {what} and takes no `{key}`", op_key.value),
+                    ));
+                }
+            }
+        }
+        let compound_domain = compound_index.map(|i| {
+            self.compounds[i]
+                .as_ref()
+                .map_or(Domain::Face, |compound| compound.domain)
+        });
+        let allowed: &[Domain] = match (op, compound_domain) {
+            (Some(op), _) => allowed_domains(&op.value),
+            (None, Some(Domain::Vert)) => &[Domain::Vert],
+            (None, Some(Domain::Edge)) => &[Domain::Edge],
+            (None, _) => &[Domain::Face],
+        };
+        let domain = match &step.on {
+            None => allowed[0],
+            Some(on) => {
+                let d = domain_of(on.value);
+                if !allowed.contains(&d) {
+                    let names: Vec<&str> = allowed.iter().map(|&d| plural(d)).collect();
+                    return Err(c.error(
+                        c.span_of(on, "on"),
+                        format!(
+                            "`{}` works on {}, not {}",
+                            op_key.value,
+                            names.join(" or "),
+                            plural(d)
+                        ),
+                    ));
+                }
+                d
+            }
+        };
+        let from = match &step.from {
+            None => None,
+            Some(f) => {
+                let span = c.content_span(f, &f.value);
+                match earlier.iter().find(|(n, _)| *n == f.value) {
+                    Some((_, uids)) => Some(uids.clone()),
+                    None => {
+                        let names: Vec<&str> = earlier.iter().map(|(n, _)| n.as_str()).collect();
+                        return Err(c
+                            .error(span, format!("no earlier step is named `{}`", f.value))
+                            .with_help(if names.is_empty() {
+                                "`from` names an earlier step of the same list; this is the first"
+                                    .to_owned()
+                            } else {
+                                format!("earlier steps: {}", names.join(", "))
+                            }));
+                    }
+                }
+            }
+        };
+        let select = match &step.select {
+            Some(s) => Some(c.condition(domain, s)?),
+            None => None,
+        };
+        let op = match (op, compound_index) {
+            (Some(op), _) => {
+                let compiled = compile_op(c, op, op_span.clone(), domain, self.base_dir)?;
+                if matches!(compiled, Op::Command(_)) {
+                    self.uses_graph = true;
+                }
+                compiled
+            }
+            (None, Some(index)) => {
+                self.uses_graph = true;
+                let (_, call) = step.compound.as_ref().expect("compound step");
+                let def = &self.ast.compound.0[index].1;
+                Op::Compound {
+                    index,
+                    frame: Box::new(compile_frame(c, domain, &def.frame(), &call.value.frame)?),
+                }
+            }
+            (None, None) => unreachable!("checked above"),
+        };
+        let location = match op_span {
+            Some(span) => {
+                let (line, column) = super::diagnostic::line_column(&c.file.text, span.start);
+                format!("{}:{line}:{column}", c.file.name)
+            }
+            None => c.file.name.clone(),
+        };
+        Ok(Step {
+            uid,
+            key: stream_key(&format!("step/{path}")),
+            name: path.to_owned(),
+            location,
+            domain,
+            select,
+            from,
+            op,
+        })
+    }
+}
+
+/// Reports a step's unknown keys and extra operators.
+fn check_stray_keys(c: &Compiler, step: &ast::Step) -> Result<(), RuleError> {
+    let Some(stray) = step.stray_keys.first() else {
+        return Ok(());
+    };
+    let span = c.span_of(stray, &stray.value);
+    Err(match &step.op {
+        Some((key, _)) if ast::OPERATOR_NAMES.contains(&stray.value.as_str()) => c
+            .error(
+                span,
+                format!(
+                    "a step runs one operator, but this one has both `{}` and `{}`",
+                    key.value, stray.value
+                ),
+            )
+            .with_help("split them into two steps"),
+        _ => {
+            let e = c.error(span, format!("unknown key `{}` in a step", stray.value));
+            match closest(&stray.value) {
+                Some(best) => e.with_help(format!("did you mean `{best}`?")),
+                None => e.with_help(format!(
+                    "a step takes `name`, `select`, `from`, `on`, `repeat` and one operator ({}), `rule = \"NAME\"` or `compound = \"NAME\"`",
+                    ast::OPERATOR_NAMES.join(", ")
+                )),
+            }
+        }
+    })
+}
+
+/// A compound's frame: the call's values override the definition's.
+fn compile_frame(
+    c: &Compiler,
+    domain: Domain,
+    definition: &ast::FrameSpec,
+    call: &ast::FrameSpec,
+) -> Result<FrameParams, RuleError> {
+    let scalar = |v: Option<&ast::Value>| -> Result<Option<Condition>, RuleError> {
+        v.map(|v| c.property_scalar(domain, v)).transpose()
+    };
+    let vector = |v: Option<&ast::Vector>| -> Result<Option<Box<[Condition; 3]>>, RuleError> {
+        v.map(|v| c.property_vector(domain, v).map(Box::new))
+            .transpose()
+    };
+    Ok(FrameParams {
+        relative: call
+            .relative
+            .as_ref()
+            .or(definition.relative.as_ref())
+            .is_some_and(|r| r.value),
+        length: scalar(call.length.as_ref().or(definition.length.as_ref()))?,
+        radius: scalar(call.radius.as_ref().or(definition.radius.as_ref()))?,
+        heading: vector(call.heading.as_ref().or(definition.heading.as_ref()))?,
+        up: vector(call.up.as_ref().or(definition.up.as_ref()))?,
+    })
+}
+
+/// Compiles a G³ command's parameters against the matched primitive.
+fn compile_command(
+    c: &Compiler,
+    kind: CommandKind,
+    o: &ast::CommandOp,
+    domain: Domain,
+    span: Option<Range<usize>>,
+) -> Result<Command, RuleError> {
+    let scalar = |v: &Option<ast::Value>| -> Result<Option<Condition>, RuleError> {
+        v.as_ref().map(|v| c.property_scalar(domain, v)).transpose()
+    };
+    let vector = |v: &Option<ast::Vector>| -> Result<Option<Box<[Condition; 3]>>, RuleError> {
+        v.as_ref()
+            .map(|v| c.property_vector(domain, v).map(Box::new))
+            .transpose()
+    };
+    if let Some(p) = &o.probability {
+        if let AstScalar::Number(x) = p.value {
+            if !(0.0..=1.0).contains(&x) {
+                return Err(c.error(
+                    p.span
+                        .clone()
+                        .or_else(|| find_key(&c.file.text, "probability")),
+                    format!("a probability must be in [0, 1], got {x}"),
                 ));
             }
         }
     }
-    let allowed = allowed_domains(&op.value);
-    let domain = match &step.on {
-        None => allowed[0],
-        Some(on) => {
-            let d = domain_of(on.value);
-            if !allowed.contains(&d) {
-                let names: Vec<String> = allowed.iter().map(|d| format!("{d}s")).collect();
+    for (value, key) in [
+        (&o.vary_length, "vary_length"),
+        (&o.vary_radius, "vary_radius"),
+        (&o.vary_turn, "vary_turn"),
+        (&o.vary_pitch, "vary_pitch"),
+        (&o.vary_roll, "vary_roll"),
+    ] {
+        if let Some(Spanned {
+            value: AstScalar::Number(x),
+            span: s,
+        }) = value
+        {
+            if *x < 0.0 {
                 return Err(c.error(
-                    c.span_of(on, "on"),
-                    format!(
-                        "`{}` works on {}, not {d}s",
-                        op_key.value,
-                        names.join(" or ")
-                    ),
+                    s.clone().or_else(|| find_key(&c.file.text, key)),
+                    format!("`{key}` is a spread σ (values are drawn from U(−σ, σ)) and cannot be negative, got {x}"),
                 ));
             }
-            d
+        }
+    }
+    let nodes = match (&o.nodes, kind) {
+        (None, _) => None,
+        (Some(n), CommandKind::SplitFace) => Some(c.condition(Domain::Vert, n)?),
+        (Some(n), _) => {
+            return Err(c.error(
+                c.content_span(n, &n.value).or(span),
+                "`nodes` (a secondary condition) belongs to `split_face` only",
+            ))
         }
     };
-    let from = match &step.from {
-        None => None,
-        Some(f) => {
-            let span = c.content_span(f, &f.value);
-            match earlier.iter().position(|s| s.name == f.value) {
-                Some(i) => Some(i),
-                None => {
-                    let names: Vec<&str> = earlier.iter().map(|s| s.name.as_str()).collect();
-                    return Err(c
-                        .error(span, format!("no earlier step is named `{}`", f.value))
-                        .with_help(if names.is_empty() {
-                            "`from` names an earlier step; this is the first".to_owned()
-                        } else {
-                            format!("earlier steps: {}", names.join(", "))
-                        }));
-                }
-            }
-        }
-    };
-    let select = match &step.select {
-        Some(s) => Some(c.condition(domain, s)?),
-        None => None,
-    };
-    let op = compile_op(c, op, op_span.clone(), base_dir)?;
-    let location = match op_span {
-        Some(span) => {
-            let (line, column) = super::diagnostic::line_column(&c.file.text, span.start);
-            format!("{}:{line}:{column}", c.file.name)
-        }
-        None => c.file.name.clone(),
-    };
-    Ok(Step {
-        key: stream_key(&format!("step/{name}")),
-        name,
-        location,
-        domain,
-        select,
-        from,
-        op,
+    Ok(Command {
+        kind,
+        relative: o.relative.unwrap_or(!matches!(
+            kind,
+            CommandKind::CreateEdge | CommandKind::EditNode
+        )),
+        length: scalar(&o.length)?,
+        radius: scalar(&o.radius)?,
+        heading: vector(&o.heading)?,
+        up: vector(&o.up)?,
+        turn: scalar(&o.turn)?,
+        pitch: scalar(&o.pitch)?,
+        roll: scalar(&o.roll)?,
+        vary_length: scalar(&o.vary_length)?,
+        vary_radius: scalar(&o.vary_radius)?,
+        vary_turn: scalar(&o.vary_turn)?,
+        vary_pitch: scalar(&o.vary_pitch)?,
+        vary_roll: scalar(&o.vary_roll)?,
+        probability: scalar(&o.probability)?,
+        nodes,
     })
 }
 
@@ -857,12 +1410,23 @@ fn compile_op(
     c: &Compiler,
     op: &Spanned<Operation>,
     span: Option<Range<usize>>,
+    domain: Domain,
     base_dir: &Path,
 ) -> Result<Op, RuleError> {
     let s = |v: &ast::Value| c.scalar(v);
+    let command = |kind: CommandKind, o: &ast::CommandOp| -> Result<Op, RuleError> {
+        Ok(Op::Command(Box::new(compile_command(
+            c,
+            kind,
+            o,
+            domain,
+            span.clone(),
+        )?)))
+    };
     Ok(match &op.value {
         Operation::Vertex(o) => Op::Vertex {
             at: c.opt_vector(&o.at, [0.0; 3])?,
+            radius: o.radius.as_ref().map(s).transpose()?,
         },
         Operation::Circle(o) => Op::Circle {
             segments: c.opt_scalar(&o.segments, 32.0)?,
@@ -1012,6 +1576,17 @@ fn compile_op(
         Operation::RegionReduce(o) => Op::RegionReduce {
             by: adjacency(o.by),
         },
+        Operation::CreateEdge(o) => command(CommandKind::CreateEdge, o)?,
+        Operation::SplitEdge(o) => command(CommandKind::SplitEdge, o)?,
+        Operation::CreateFace(o) => command(CommandKind::CreateFace, o)?,
+        Operation::SplitFace(o) => command(CommandKind::SplitFace, o)?,
+        Operation::EditNode(o) => command(CommandKind::EditNode, o)?,
+        Operation::Skin(o) => Op::Skin {
+            sides: c.opt_scalar(&o.sides, 8.0)?,
+            radius: c.opt_scalar(&o.radius, 0.1)?,
+            joints: o.joints.unwrap_or(true),
+            keep_wires: o.keep_wires.unwrap_or(false),
+        },
     })
 }
 
@@ -1024,7 +1599,7 @@ fn adjacency(by: Option<ast::AdjacencyName>) -> Adjacency {
 
 /// The step key nearest to `word`, if close enough to be a typo.
 fn closest(word: &str) -> Option<&'static str> {
-    let keys: Vec<&'static str> = ["name", "select", "from", "on"]
+    let keys: Vec<&'static str> = ast::STEP_KEYS
         .iter()
         .chain(ast::OPERATOR_NAMES)
         .copied()

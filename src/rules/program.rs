@@ -25,8 +25,75 @@ pub struct Program {
     pub param_names: Vec<String>,
     /// Parameters in evaluation order (dependencies first).
     pub params: Vec<Param>,
-    /// The start step (if any) followed by the steps, in order.
+    /// The start step (if any) followed by the steps, in order, with rules
+    /// included and repeats unrolled.
     pub steps: Vec<Step>,
+    /// Compound commands, referenced by index from [`Op::Compound`].
+    pub compounds: Vec<Compound>,
+    /// Number of steps in the whole program, compounds' contents included:
+    /// every [`Step::uid`] is below it.
+    pub step_count: usize,
+    /// Whether any step is a G³ command or compound, so the engine keeps
+    /// node radius, frames and ages.
+    pub uses_graph: bool,
+}
+
+/// A compound command (thesis 003 §3.3): run its steps inside a scope made
+/// of one initial primitive, its sub-primitives and what the steps create.
+#[derive(Debug, Clone)]
+pub struct Compound {
+    pub name: String,
+    /// Kind of the initial primitive.
+    pub domain: Domain,
+    /// Condition from the definition; the calling step's `select` is added.
+    pub select: Option<Condition>,
+    pub steps: Vec<Step>,
+}
+
+/// A compound's own parameters (Table 3.2), evaluated per initial primitive.
+#[derive(Debug, Clone)]
+pub struct FrameParams {
+    /// Relative to the initial primitive instead of the enclosing reference.
+    pub relative: bool,
+    pub length: Option<Condition>,
+    pub radius: Option<Condition>,
+    pub heading: Option<Box<[Condition; 3]>>,
+    pub up: Option<Box<[Condition; 3]>>,
+}
+
+/// The five G³ commands (thesis 003 §2.4.5, §3.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CommandKind {
+    CreateEdge,
+    SplitEdge,
+    CreateFace,
+    SplitFace,
+    EditNode,
+}
+
+/// A G³ command's parameters: conditions (expressions over parameters and
+/// the matched primitive's properties), evaluated per primitive on the
+/// generation the command reads.
+#[derive(Debug, Clone)]
+pub struct Command {
+    pub kind: CommandKind,
+    pub relative: bool,
+    pub length: Option<Condition>,
+    pub radius: Option<Condition>,
+    pub heading: Option<Box<[Condition; 3]>>,
+    pub up: Option<Box<[Condition; 3]>>,
+    /// Fixed rotations in degrees: about U, L, H.
+    pub turn: Option<Condition>,
+    pub pitch: Option<Condition>,
+    pub roll: Option<Condition>,
+    pub vary_length: Option<Condition>,
+    pub vary_radius: Option<Condition>,
+    pub vary_turn: Option<Condition>,
+    pub vary_pitch: Option<Condition>,
+    pub vary_roll: Option<Condition>,
+    pub probability: Option<Condition>,
+    /// `split_face`: which of the face's nodes to connect (vertex condition).
+    pub nodes: Option<Condition>,
 }
 
 #[derive(Debug, Clone)]
@@ -77,6 +144,28 @@ pub enum Property {
     Min(usize),
     Max(usize),
     Direction(usize),
+    /// Edge: position of the pre-node / post-node.
+    PrePosition(usize),
+    PostPosition(usize),
+    /// Position (node), centre (edge, face) in the scope's frame: x and y
+    /// span [0, 1] over the initial face, z is measured in its size.
+    Relative(usize),
+    /// Length / area over the initial primitive's size / area.
+    RelativeLength,
+    RelativeArea,
+    /// Generation that created the primitive.
+    Age,
+    /// The generation of the command being run (same for every primitive).
+    Generation,
+    Radius,
+    /// Node: edges leaving / entering it. Edge: edges leaving its post-node
+    /// / entering its pre-node.
+    OutEdges,
+    InEdges,
+    /// Edge: other edges sharing a node with it.
+    EdgeNeighborEdges,
+    /// Node: mean length of its incoming edges (0 if none); edge: its length.
+    PreLength,
     Length,
     Area,
     Sides,
@@ -96,6 +185,10 @@ pub struct Condition {
 
 #[derive(Debug, Clone)]
 pub struct Step {
+    /// Unique over the program (compound contents included), in program
+    /// order; the step's generation number is `uid + 1`.
+    pub uid: u32,
+    /// Full path: rule and compound names, repeat counts, the step's name.
     pub name: String,
     /// Random stream key (`step/NAME`).
     pub key: u64,
@@ -104,8 +197,9 @@ pub struct Step {
     /// Element kind the step selects.
     pub domain: Domain,
     pub select: Option<Condition>,
-    /// Index of the earlier step whose created elements are the candidates.
-    pub from: Option<usize>,
+    /// Uids of the earlier step whose created elements are the candidates
+    /// (every copy of a repeated step).
+    pub from: Option<Vec<u32>>,
     pub op: Op,
 }
 
@@ -122,6 +216,7 @@ pub enum Offset {
 pub enum Op {
     Vertex {
         at: Vector,
+        radius: Option<Scalar>,
     },
     Circle {
         segments: Scalar,
@@ -215,6 +310,17 @@ pub enum Op {
     RegionReduce {
         by: Adjacency,
     },
+    Command(Box<Command>),
+    Compound {
+        index: usize,
+        frame: Box<FrameParams>,
+    },
+    Skin {
+        sides: Scalar,
+        radius: Scalar,
+        joints: bool,
+        keep_wires: bool,
+    },
 }
 
 impl Op {
@@ -249,6 +355,15 @@ impl Op {
             Op::Mirror { .. } => "mirror",
             Op::RegionExtend { .. } => "region_extend",
             Op::RegionReduce { .. } => "region_reduce",
+            Op::Command(c) => match c.kind {
+                CommandKind::CreateEdge => "create_edge",
+                CommandKind::SplitEdge => "split_edge",
+                CommandKind::CreateFace => "create_face",
+                CommandKind::SplitFace => "split_face",
+                CommandKind::EditNode => "edit_node",
+            },
+            Op::Compound { .. } => "compound",
+            Op::Skin { .. } => "skin",
         }
     }
 

@@ -31,6 +31,7 @@ pub mod faces;
 pub mod inset;
 pub mod merge;
 pub mod select;
+pub mod skin;
 pub mod split;
 pub mod transform;
 
