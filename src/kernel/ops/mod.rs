@@ -18,6 +18,7 @@
 //! | [`inset`] | inset faces (individual), inset region |
 //! | [`split`] | split edges (cuts, ratios) |
 //! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
+//! | [`skin`] | wire edges into closed tubes (frusta, joint spheres) |
 
 use thiserror::Error;
 
