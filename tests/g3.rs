@@ -318,8 +318,18 @@ fn same_seed_same_bytes_and_streams_are_independent() {
     };
     assert_eq!(bytes(&p, 5), bytes(&p, 5));
     assert_ne!(bytes(&p, 5), bytes(&p, 6));
-    // An unrelated step added at the end leaves every earlier draw alone.
-    let more = toml(&format!("{tree}\n[[step]]\nname = \"late\"\nselect = \"random < 0.5\"\ntranslate = {{ offset = [0, 0, 0] }}\n"));
+    // An unrelated step inserted first (it draws from its own stream and
+    // shifts every later step's number) changes no other draw. The roll is
+    // made constant here because the example's `137.5 * age` reads the
+    // absolute generation, which the insertion shifts by design.
+    let steady = tree.replace("roll = \"137.5 * age\"", "roll = 137.5");
+    let trunk = "[[step]]\nname = \"trunk\"";
+    assert!(steady.contains(trunk) && steady != tree);
+    let p = toml(&steady);
+    let more = toml(&steady.replace(
+        trunk,
+        &format!("[[step]]\nname = \"unrelated\"\nselect = \"random < 0.5\"\ntranslate = {{ offset = [0, 0, 0] }}\n\n{trunk}"),
+    ));
     let a = run_with(&p, RunOptions::default());
     let b = run_with(&more, RunOptions::default());
     let positions =

@@ -87,13 +87,12 @@ pub fn property(ctx: &Context, domain: Domain, index: usize, property: Property)
                 InEdges => ctx.count_edges(directed_edges(mesh, v, 1)),
                 Radius => graph::radius(mesh, v),
                 PreLength => {
-                    let lengths: Vec<f64> = directed_edges(mesh, v, 1)
-                        .map(|e| mesh.edge_length(e))
-                        .collect();
-                    if lengths.is_empty() {
+                    let (sum, n) = directed_edges(mesh, v, 1)
+                        .fold((0.0, 0usize), |(s, n), e| (s + mesh.edge_length(e), n + 1));
+                    if n == 0 {
                         0.0
                     } else {
-                        lengths.iter().sum::<f64>() / lengths.len() as f64
+                        sum / n as f64
                     }
                 }
                 _ => unreachable!("compiler admits only vertex properties"),

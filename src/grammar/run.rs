@@ -574,7 +574,7 @@ impl Runner<'_> {
         }
         let mut made = Selection::new();
         for scope in scopes {
-            let before = scope.clone();
+            let initial = scope.sizes();
             self.scopes.push(scope);
             self.calls.push(step.uid);
             let mut result = Ok(());
@@ -587,7 +587,7 @@ impl Runner<'_> {
             self.calls.pop();
             let scope = self.scopes.pop().expect("pushed above");
             result?;
-            made.extend(&scope.added_since(&before));
+            made.extend(&scope.added_since(initial));
         }
         made.normalize();
         Ok(made)

@@ -215,25 +215,29 @@ impl Scope {
         out
     }
 
-    /// What joined this scope since `before` (a copy taken earlier).
-    pub fn added_since(&self, before: &Scope) -> Selection {
-        let tail = |now: &Members, then: &Members| -> Vec<usize> {
-            now.list[then.list.len()..]
-                .iter()
-                .map(|&i| i as usize)
-                .collect()
-        };
+    /// Member counts per kind: a mark for [`Scope::added_since`].
+    pub fn sizes(&self) -> [usize; 3] {
+        [
+            self.verts.list.len(),
+            self.edges.list.len(),
+            self.faces.list.len(),
+        ]
+    }
+
+    /// What joined this scope since it had `sizes` members (members are
+    /// only ever appended).
+    pub fn added_since(&self, sizes: [usize; 3]) -> Selection {
+        fn tail(now: &Members, from: usize) -> impl Iterator<Item = usize> + '_ {
+            now.list[from..].iter().map(|&i| i as usize)
+        }
         Selection::from_parts(
-            tail(&self.verts, &before.verts)
-                .into_iter()
+            tail(&self.verts, sizes[0])
                 .map(VertId::from_index)
                 .collect(),
-            tail(&self.edges, &before.edges)
-                .into_iter()
+            tail(&self.edges, sizes[1])
                 .map(EdgeId::from_index)
                 .collect(),
-            tail(&self.faces, &before.faces)
-                .into_iter()
+            tail(&self.faces, sizes[2])
                 .map(FaceId::from_index)
                 .collect(),
         )

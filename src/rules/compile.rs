@@ -990,29 +990,22 @@ impl Expander<'_, '_> {
                 ));
             }
         }
-        let names: Vec<&str> = self
-            .ast
-            .rules
-            .0
-            .iter()
-            .map(|r| r.0.value.as_str())
-            .collect();
-        let Some(index) = names.iter().position(|n| *n == rule.value) else {
-            let e = c.error(span, format!("no rule is named `{}`", rule.value));
-            return Err(match closest_in(&rule.value, &names) {
-                Some(i) => e.with_help(format!("did you mean `{}`?", names[i])),
-                None if names.is_empty() => {
-                    e.with_help("define it as `[rules.NAME]` with a `step` list")
-                }
-                None => e.with_help(format!("rules: {}", names.join(", "))),
-            });
-        };
-        if let Some(at) = self.rule_stack.iter().position(|&r| r == index) {
-            let mut cycle: Vec<&str> = self.rule_stack[at..].iter().map(|&r| names[r]).collect();
-            cycle.push(names[index]);
+        let names = definition_names(&self.ast.rules);
+        let index = find_definition(
+            c,
+            span.clone(),
+            &rule.value,
+            &names,
+            (
+                "rule",
+                "rules",
+                "define it as `[rules.NAME]` with a `step` list",
+            ),
+        )?;
+        if let Some(cycle) = cycle_through(&self.rule_stack, index, &names) {
             return Err(c.error(
                 span,
-                format!("rules include each other in a cycle: {}", cycle.join(" → ")),
+                format!("rules include each other in a cycle: {cycle}"),
             ));
         }
         self.rule_stack.push(index);
@@ -1032,25 +1025,11 @@ impl Expander<'_, '_> {
         if self.compounds[index].is_some() {
             return Ok(());
         }
-        let names: Vec<&str> = self
-            .ast
-            .compound
-            .0
-            .iter()
-            .map(|r| r.0.value.as_str())
-            .collect();
-        if let Some(at) = self.compound_stack.iter().position(|&r| r == index) {
-            let mut cycle: Vec<&str> = self.compound_stack[at..]
-                .iter()
-                .map(|&r| names[r])
-                .collect();
-            cycle.push(names[index]);
+        let names = definition_names(&self.ast.compound);
+        if let Some(cycle) = cycle_through(&self.compound_stack, index, &names) {
             return Err(c.error(
                 call_span,
-                format!(
-                    "compound commands contain each other in a cycle: {}",
-                    cycle.join(" → ")
-                ),
+                format!("compound commands contain each other in a cycle: {cycle}"),
             ));
         }
         let (name, def) = &self.ast.compound.0[index];
@@ -1116,13 +1095,6 @@ impl Expander<'_, '_> {
             }
             (Some((key, op)), None) => (key, Some(op), None),
             (None, Some((key, call))) => {
-                let names: Vec<&str> = self
-                    .ast
-                    .compound
-                    .0
-                    .iter()
-                    .map(|r| r.0.value.as_str())
-                    .collect();
                 let span = call
                     .value
                     .name
@@ -1130,19 +1102,17 @@ impl Expander<'_, '_> {
                     .clone()
                     .or_else(|| call.span.clone())
                     .or_else(|| find_literal(&c.file.text, &call.value.name.value));
-                let Some(index) = names.iter().position(|n| *n == call.value.name.value) else {
-                    let e = c.error(
-                        span,
-                        format!("no compound command is named `{}`", call.value.name.value),
-                    );
-                    return Err(match closest_in(&call.value.name.value, &names) {
-                        Some(i) => e.with_help(format!("did you mean `{}`?", names[i])),
-                        None if names.is_empty() => e.with_help(
-                            "define it as `[compound.NAME]` with `on` and a `step` list",
-                        ),
-                        None => e.with_help(format!("compound commands: {}", names.join(", "))),
-                    });
-                };
+                let index = find_definition(
+                    c,
+                    span.clone(),
+                    &call.value.name.value,
+                    &definition_names(&self.ast.compound),
+                    (
+                        "compound command",
+                        "compound commands",
+                        "define it as `[compound.NAME]` with `on` and a `step` list",
+                    ),
+                )?;
                 self.compile_compound(index, span)?;
                 (key, None, Some(index))
             }
@@ -1267,6 +1237,39 @@ impl Expander<'_, '_> {
             op,
         })
     }
+}
+
+fn definition_names<T>(defs: &ast::Named<T>) -> Vec<&str> {
+    defs.0.iter().map(|(name, _)| name.value.as_str()).collect()
+}
+
+/// Index of definition `name` among `names`, or an "unknown" error with a
+/// did-you-mean hint. `what` is (singular, plural, how to define one).
+fn find_definition(
+    c: &Compiler,
+    span: Option<Range<usize>>,
+    name: &str,
+    names: &[&str],
+    what: (&str, &str, &str),
+) -> Result<usize, RuleError> {
+    let (singular, plural, define) = what;
+    if let Some(i) = names.iter().position(|n| *n == name) {
+        return Ok(i);
+    }
+    let e = c.error(span, format!("no {singular} is named `{name}`"));
+    Err(match closest_in(name, names) {
+        Some(i) => e.with_help(format!("did you mean `{}`?", names[i])),
+        None if names.is_empty() => e.with_help(define.to_owned()),
+        None => e.with_help(format!("{plural}: {}", names.join(", "))),
+    })
+}
+
+/// `a → b → a` when `index` is already on `stack` (definitions being expanded).
+fn cycle_through(stack: &[usize], index: usize, names: &[&str]) -> Option<String> {
+    let at = stack.iter().position(|&r| r == index)?;
+    let mut cycle: Vec<&str> = stack[at..].iter().map(|&r| names[r]).collect();
+    cycle.push(names[index]);
+    Some(cycle.join(" → "))
 }
 
 /// Reports a step's unknown keys and extra operators.
