@@ -1,77 +1,50 @@
 //! Criterion benchmarks for the G³ engine: a synthetic grammar grown to
-//! 10³…10⁵ primitives (cost per primitive must stay flat), and the house
-//! example end to end.
+//! 10³…10⁶ primitives (cost per primitive must stay flat), and the house
+//! and sofa examples end to end.
 
 use std::hint::black_box;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use graftal::grammar::{run, RunOptions};
-use graftal::rules::compile::{compile, compile_file, parse};
-use graftal::rules::diagnostic::SourceFile;
-use graftal::rules::spanned::SourceFormat;
-use graftal::rules::Program;
+use graftal::rules::{compile_file, Override, Program};
 
-/// A grid of `n`×`n` quads; every face fanned, every spoke split, a
-/// skeleton edge grown from every node: five commands over the whole model.
+fn rules(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(name)
+}
+
+/// `benches/synthetic.toml` at size `n` (about 150·n² primitives).
 fn synthetic(n: u32) -> Program {
-    let text = format!(
-        r#"
-[start]
-grid = {{ segments = [{n}, {n}], size = [{n}, {n}] }}
-[[step]]
-name = "fan"
-split_face = {{ length = 0.2 }}
-[[step]]
-name = "spokes"
-select = "faces == 2"
-split_edge = {{}}
-[[step]]
-name = "hairs"
-select = "faces >= 2 && pos.z > 0.1"
-create_edge = {{ heading = [0, 0, 1], length = 0.3, radius = 0.05, vary_turn = 10 }}
-[[step]]
-name = "tips"
-select = "in_edges == 1 && faces == 0"
-create_edge = {{ relative = true, length = 0.5, pitch = 30 }}
-[[step]]
-name = "lift"
-select = "faces == 0 && out_edges == 0"
-edit_node = {{ heading = [0, 0, 1], length = 0.1 }}
-"#
-    );
-    let file = SourceFile {
-        name: "synthetic.toml".into(),
-        text,
-    };
-    let ast = parse(&file, SourceFormat::Toml).unwrap();
-    compile(&file, SourceFormat::Toml, &ast, &[], Path::new(".")).unwrap()
+    let size = Override::parse(&format!("n={n}")).unwrap();
+    compile_file(&rules("benches/synthetic.toml"), &[size]).unwrap()
+}
+
+/// Primitives (nodes, edges, faces) of the program's result.
+fn primitives(program: &Program) -> u64 {
+    let out = run(program, &RunOptions::default()).unwrap();
+    (out.mesh.vert_count() + out.mesh.edge_count() + out.mesh.face_count()) as u64
 }
 
 fn grammar(c: &mut Criterion) {
     let mut group = c.benchmark_group("grammar");
     group.sample_size(10);
-    for n in [8u32, 26, 82] {
+    for n in [8u32, 26, 82, 190] {
         let program = synthetic(n);
-        let primitives = {
-            let out = run(&program, &RunOptions::default()).unwrap();
-            out.mesh.vert_count() + out.mesh.edge_count() + out.mesh.face_count()
-        };
-        group.throughput(Throughput::Elements(primitives as u64));
+        let primitives = primitives(&program);
+        group.throughput(Throughput::Elements(primitives));
         group.bench_with_input(
             BenchmarkId::new("synthetic", primitives),
             &program,
             |b, p| b.iter(|| black_box(run(p, &RunOptions::default()).unwrap())),
         );
     }
-    let house = compile_file(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("rules/house.toml"),
-        &[],
-    )
-    .unwrap();
-    group.bench_function("house", |b| {
-        b.iter(|| black_box(run(&house, &RunOptions::default()).unwrap()))
-    });
+    for example in ["house", "sofa"] {
+        let program = compile_file(&rules(&format!("rules/{example}.toml")), &[]).unwrap();
+        group.throughput(Throughput::Elements(primitives(&program)));
+        group.bench_function(example, |b| {
+            b.iter(|| black_box(run(&program, &RunOptions::default()).unwrap()))
+        });
+    }
     group.finish();
 }
 

@@ -422,6 +422,14 @@ fn bad_grammar_input_is_rejected_with_a_location() {
         ("[[step]]\ncompound = \"missing\"\n", "no compound command is named `missing`"),
         ("[[step]]\nrepeat = 0\ncube = {}\n", "`repeat` must be between 1 and"),
         ("[[step]]\nsplit_edge = { lenght = 1 }\n", "unknown field `lenght`"),
+        (
+            "[start]\nvertex = {}\n[rules.r]\nstep = [ { edit_node = {} }, { create_edge = { relative = true } } ]\n[[step]]\nrule = \"r\"\n",
+            "test.toml:4:32: relative `create_edge` needs a preceding edge",
+        ),
+        (
+            "[start]\nvertex = {}\n[[step]]\nedit_node = { relative = true, length = 0.5 }\n",
+            "test.toml:4:1: relative `edit_node` needs a preceding edge",
+        ),
     ];
     for (text, expected) in cases {
         let message = error_of(text);
@@ -434,11 +442,20 @@ fn bad_grammar_input_is_rejected_with_a_location() {
 
 #[test]
 fn relative_length_without_a_preceding_edge_is_a_located_runtime_error() {
-    let p = toml("[start]\nvertex = {}\n[[step]]\ncreate_edge = { relative = true, length = 2 }\n");
+    // A zero relative length needs no edge: the node's own frame is used.
+    let still =
+        toml("[start]\nvertex = {}\n[[step]]\nedit_node = { relative = true, radius = 2 }\n");
+    assert!(run(&still, &RunOptions::default()).is_ok());
+
+    // Edges exist after the first step, so the compiler cannot tell; the
+    // root node (no incoming edge) is matched by the second step at run time.
+    let p = toml(
+        "[start]\nvertex = {}\n[[step]]\ncreate_edge = {}\n[[step]]\ncreate_edge = { relative = true, length = 2 }\n",
+    );
     let err = run(&p, &RunOptions::default()).unwrap_err();
     assert_eq!(err.kind, RunErrorKind::Failed);
     assert!(
-        err.location.starts_with("test.toml:4:1"),
+        err.location.starts_with("test.toml:6:1"),
         "{}",
         err.location
     );

@@ -14,7 +14,8 @@ use crate::io;
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
-use crate::rules::compile::{property_index, PROPERTY_SLOTS};
+use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
+use crate::rules::expr::SlotSource;
 use crate::rules::program::{
     Command, CommandKind, Condition, FrameParams, Offset, Op, ParamKind, Program, Step, Vector,
 };
@@ -145,7 +146,7 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         max_elements: options.max_elements,
         shuffle: options.shuffle_visits,
         validate_each_step: options.validate_each_step,
-        slots: vec![0.0; program.param_names.len() + PROPERTY_SLOTS],
+        slots: vec![0.0; program.param_names.len()],
         created: vec![Selection::new(); program.step_count],
         stats: vec![None; program.step_count],
         scopes: Vec::new(),
@@ -362,7 +363,9 @@ impl Runner<'_> {
         Ok(())
     }
 
-    /// Value of condition `c` for primitive `index` of `domain`.
+    /// Value of condition `c` for primitive `index` of `domain`. Element
+    /// properties are computed when the condition reads them, so the right
+    /// side of a failed `&&` costs nothing.
     fn eval(
         &mut self,
         mesh: &Mesh,
@@ -380,11 +383,15 @@ impl Runner<'_> {
             generation,
         };
         let base = self.program.param_names.len();
-        for &p in &c.properties {
-            self.slots[base + property_index(p) as usize] =
-                properties::property(&ctx, domain, index, p);
-        }
-        c.expr.eval(&self.slots)
+        let mut source = LazyProperties {
+            params: &self.slots[..base],
+            ctx: &ctx,
+            domain,
+            index,
+            values: [0.0; PROPERTY_SLOTS],
+            known: 0,
+        };
+        c.expr.eval_with(&mut source)
     }
 
     /// Candidates in ascending id order.
@@ -441,7 +448,7 @@ impl Runner<'_> {
         for &i in matched {
             if let Some(call) = call {
                 if let Some(products) = self.applied.get(&(call, step.uid, i as u32)) {
-                    made.extend(products);
+                    made.append(products);
                     tally.shared += 1;
                     continue;
                 }
@@ -500,7 +507,7 @@ impl Runner<'_> {
                 self.applied
                     .insert((call, step.uid, plan.target as u32), products.clone());
             }
-            made.extend(&products);
+            made.append(&products);
         }
         made.normalize();
         Ok(made)
@@ -587,7 +594,7 @@ impl Runner<'_> {
             self.calls.pop();
             let scope = self.scopes.pop().expect("pushed above");
             result?;
-            made.extend(&scope.added_since(initial));
+            made.append(&scope.added_since(initial));
         }
         made.normalize();
         Ok(made)
@@ -870,4 +877,32 @@ fn selection_of(domain: Domain, indices: &[usize]) -> Selection {
         Domain::Face => s.faces = indices.iter().map(|&i| FaceId::from_index(i)).collect(),
     }
     s
+}
+
+/// Slot values for a condition: parameters as given, element properties
+/// computed on first read and remembered for the rest of the evaluation.
+struct LazyProperties<'a> {
+    params: &'a [f64],
+    ctx: &'a Context<'a>,
+    domain: Domain,
+    index: usize,
+    values: [f64; PROPERTY_SLOTS],
+    /// Bit k set: `values[k]` holds property k.
+    known: u64,
+}
+
+const _: () = assert!(PROPERTY_SLOTS <= u64::BITS as usize);
+
+impl SlotSource for LazyProperties<'_> {
+    fn slot(&mut self, slot: u32) -> f64 {
+        let Some(k) = (slot as usize).checked_sub(self.params.len()) else {
+            return self.params[slot as usize];
+        };
+        if self.known & (1 << k) == 0 {
+            let property = property_from_index(k as u32);
+            self.values[k] = properties::property(self.ctx, self.domain, self.index, property);
+            self.known |= 1 << k;
+        }
+        self.values[k]
+    }
 }

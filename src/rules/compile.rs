@@ -246,7 +246,6 @@ impl<'a> Compiler<'a> {
         match &value.value {
             AstScalar::Number(x) => Ok(Condition {
                 expr: self.number(*x, value.span.clone())?,
-                properties: Vec::new(),
             }),
             AstScalar::Expr(text) => self.condition(
                 domain,
@@ -343,14 +342,13 @@ impl<'a> Compiler<'a> {
     }
 
     fn condition(&self, domain: Domain, text: &Spanned<String>) -> Result<Condition, RuleError> {
-        let mut properties: Vec<Property> = Vec::new();
         let base = self.param_names.len() as u32;
         let resolver = |name: &str| -> Option<u32> {
             if let Some(slot) = self.resolve_param(name) {
                 return Some(slot);
             }
-            // Slots past the parameters are properties, numbered in the
-            // fixed order of this list; `properties` is rebuilt below.
+            // Slots past the parameters are properties, in the fixed
+            // order of `property_index`.
             property_for(domain, name).map(|p| base + property_index(p))
         };
         let expr = Expr::compile(&text.value, &resolver).map_err(|err| {
@@ -362,12 +360,7 @@ impl<'a> Compiler<'a> {
                 None => properties,
             })
         })?;
-        for &slot in expr.used_slots() {
-            if slot >= base {
-                properties.push(property_from_index(slot - base));
-            }
-        }
-        Ok(Condition { expr, properties })
+        Ok(Condition { expr })
     }
 }
 
@@ -410,7 +403,8 @@ pub fn property_index(p: Property) -> u32 {
 /// Number of property slots after the parameters.
 pub const PROPERTY_SLOTS: usize = 45;
 
-fn property_from_index(i: u32) -> Property {
+/// Inverse of [`property_index`].
+pub fn property_from_index(i: u32) -> Property {
     use Property::*;
     const SCALARS: [Property; 18] = [
         Id,
@@ -623,6 +617,7 @@ pub fn compile(
         compound_stack: Vec::new(),
         compounds: (0..ast.compound.0.len()).map(|_| None).collect(),
         uses_graph: false,
+        edges_possible: false,
     };
     let mut steps: Vec<Step> = Vec::new();
     if let Some(start) = &ast.start {
@@ -657,6 +652,7 @@ pub fn compile(
                     compound_stack: Vec::new(),
                     compounds: (0..ast.compound.0.len()).map(|_| None).collect(),
                     uses_graph: false,
+                    edges_possible: true,
                 };
                 check.compile_compound(i, None)?;
                 compounds.push(Compound {
@@ -878,6 +874,9 @@ struct Expander<'c, 'a> {
     compound_stack: Vec<usize>,
     compounds: Vec<Option<Compound>>,
     uses_graph: bool,
+    /// Whether the model may have an edge once the steps expanded so far
+    /// have run (an over-approximation: only `false` is a certainty).
+    edges_possible: bool,
 }
 
 /// Most steps a rule file may unroll to: a guard against `repeat = 1e9`.
@@ -1078,6 +1077,62 @@ impl Expander<'_, '_> {
         Ok(())
     }
 
+    /// A relative `create_edge` or `edit_node` takes its length unit from
+    /// the node's incoming edge. Where the steps so far cannot have made any
+    /// edge (a file starting from one vertex) and the length is not zero,
+    /// that is certain to fail, so it is reported before anything runs. Inside compounds the
+    /// order of calls is not known here; the engine reports those cases.
+    fn check_preceding_edge(
+        &mut self,
+        op: &Op,
+        span: Option<Range<usize>>,
+        key: &str,
+    ) -> Result<(), RuleError> {
+        if !self.compound_stack.is_empty() {
+            return Ok(());
+        }
+        let node_command = match op {
+            Op::Command(command) => matches!(
+                command.kind,
+                CommandKind::CreateEdge | CommandKind::EditNode
+            )
+            .then_some(command),
+            _ => None,
+        };
+        if let Some(command) = node_command {
+            // A zero relative length is fine without an edge (the node's own
+            // frame is used); only a length certain to be non-zero fails.
+            let length = match &command.length {
+                None => Some(if command.kind == CommandKind::CreateEdge {
+                    1.0
+                } else {
+                    0.0
+                }),
+                Some(l) => l.expr.constant(),
+            };
+            let moves = length.is_some_and(|l| l != 0.0)
+                || command
+                    .vary_length
+                    .as_ref()
+                    .is_some_and(|v| v.expr.constant() != Some(0.0));
+            if command.relative && moves && !self.edges_possible {
+                return Err(self
+                    .c
+                    .error(
+                        span,
+                        format!("relative `{key}` needs a preceding edge (the node's incoming edge), but no edge can exist yet at this step"),
+                    )
+                    .with_help("make the first edge absolute (leave out `relative` or set it to false), as the trunk of rules/tree.toml does"));
+            }
+        }
+        let keeps_edgeless = matches!(op, Op::Vertex { .. })
+            || node_command.is_some_and(|c| c.kind == CommandKind::EditNode);
+        if !keeps_edgeless {
+            self.edges_possible = true;
+        }
+        Ok(())
+    }
+
     fn compile_step(
         &mut self,
         step: &ast::Step,
@@ -1219,6 +1274,7 @@ impl Expander<'_, '_> {
             }
             (None, None) => unreachable!("checked above"),
         };
+        self.check_preceding_edge(&op, op_span.clone(), &op_key.value)?;
         let location = match op_span {
             Some(span) => {
                 let (line, column) = super::diagnostic::line_column(&c.file.text, span.start);

@@ -160,6 +160,22 @@ impl<F: Fn(&str) -> Option<u32>> NameResolver for F {
     }
 }
 
+/// Where an expression's slot values come from when it is evaluated with
+/// [`Expr::eval_with`].
+pub trait SlotSource {
+    fn slot(&mut self, slot: u32) -> f64;
+}
+
+/// Slot values given up front: `slots[i]` is slot i.
+struct SliceSlots<'a>(&'a [f64]);
+
+impl SlotSource for SliceSlots<'_> {
+    #[inline]
+    fn slot(&mut self, slot: u32) -> f64 {
+        self.0[slot as usize]
+    }
+}
+
 /// A resolver over a fixed list of names: the name at index `i` is slot `i`.
 #[derive(Debug, Clone, Copy)]
 pub struct SlotNames<'a>(pub &'a [&'a str]);
@@ -226,10 +242,23 @@ impl Expr {
                 slots.len()
             );
         }
+        self.eval_with(&mut SliceSlots(slots))
+    }
+
+    /// Evaluate, asking `source` for each slot value when an instruction
+    /// reads it. Operands that `&&` and `||` skip are never asked
+    /// for, so a source can compute costly values on demand.
+    ///
+    /// Never allocates (the source may).
+    #[inline]
+    pub fn eval_with<S: SlotSource>(&self, source: &mut S) -> f64 {
+        if let Some(value) = self.constant {
+            return value;
+        }
         if self.max_stack <= SMALL_STACK {
-            self.run::<SMALL_STACK>(slots)
+            self.run::<SMALL_STACK, S>(source)
         } else {
-            self.run::<MAX_STACK>(slots)
+            self.run::<MAX_STACK, S>(source)
         }
     }
 
@@ -379,7 +408,7 @@ macro_rules! instruction_set {
 
         impl Expr {
             /// Runs the ops on a stack of `N >= max_stack` entries.
-            fn run<const N: usize>(&self, slots: &[f64]) -> f64 {
+            fn run<const N: usize, S: SlotSource>(&self, slots: &mut S) -> f64 {
                 let ops = self.ops.as_slice();
                 let constants = self.constants.as_slice();
                 // `top` keeps the top of the stack in a register and `stack[..depth]`
@@ -401,7 +430,7 @@ macro_rules! instruction_set {
                         Op::Slot(slot) => {
                             stack[depth] = top;
                             depth += 1;
-                            top = slots[slot as usize];
+                            top = slots.slot(slot);
                         }
                         Op::AndJump(skip) => {
                             if top == 0.0 {
@@ -432,7 +461,7 @@ macro_rules! instruction_set {
                                 top = Binary::$binary.apply(top, constants[index as usize]);
                             }
                             Op::$binary_slot(slot) => {
-                                top = Binary::$binary.apply(top, slots[slot as usize]);
+                                top = Binary::$binary.apply(top, slots.slot(slot));
                             }
                         )*
                         $(
@@ -1739,6 +1768,42 @@ mod tests {
         }
         // `&&` of a negative zero yields a positive zero.
         assert_eq!(eval("-0.0 * x && y").to_bits(), 0.0_f64.to_bits());
+    }
+
+    #[test]
+    fn eval_with_asks_only_for_the_slots_it_reaches() {
+        struct Counting {
+            values: [f64; 2],
+            asked: Vec<u32>,
+        }
+        impl SlotSource for Counting {
+            fn slot(&mut self, slot: u32) -> f64 {
+                self.asked.push(slot);
+                self.values[slot as usize]
+            }
+        }
+        let names = SlotNames(&["x", "y"]);
+        let and = Expr::compile("x == 1 && y > 0", &names).unwrap();
+        let mut source = Counting {
+            values: [0.0, 5.0],
+            asked: Vec::new(),
+        };
+        assert_eq!(and.eval_with(&mut source), 0.0);
+        assert_eq!(source.asked, [0]);
+        let mut source = Counting {
+            values: [1.0, 5.0],
+            asked: Vec::new(),
+        };
+        assert_eq!(and.eval_with(&mut source), 1.0);
+        assert_eq!(source.asked, [0, 1]);
+        // The same answers as slot values given up front.
+        for values in [[0.0, 5.0], [1.0, 5.0], [1.0, -1.0]] {
+            let mut source = Counting {
+                values,
+                asked: Vec::new(),
+            };
+            assert_eq!(and.eval_with(&mut source), and.eval(&values));
+        }
     }
 
     #[test]

@@ -176,11 +176,11 @@ pub enum Property {
 }
 
 /// A per-element condition: an expression whose slots are the parameters
-/// followed by `properties` (slot `param_count + i` is `properties[i]`).
+/// followed by the element properties (slot `param_count + k` is the
+/// property numbered k by `compile::property_index`).
 #[derive(Debug, Clone)]
 pub struct Condition {
     pub expr: Expr,
-    pub properties: Vec<Property>,
 }
 
 #[derive(Debug, Clone)]

@@ -74,12 +74,14 @@ impl Selection {
         self.verts.is_empty() && self.edges.is_empty() && self.faces.is_empty()
     }
 
-    /// Adds everything of `other`, keeping the canonical form.
-    pub fn extend(&mut self, other: &Selection) {
+    /// Appends everything of `other` without restoring the canonical form:
+    /// callers gathering many selections append them all, then call
+    /// [`Selection::normalize`] once (sorting after every append would make
+    /// gathering quadratic).
+    pub fn append(&mut self, other: &Selection) {
         self.verts.extend_from_slice(&other.verts);
         self.edges.extend_from_slice(&other.edges);
         self.faces.extend_from_slice(&other.faces);
-        self.normalize();
     }
 }
 
