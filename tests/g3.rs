@@ -2,25 +2,14 @@
 //! modes (Table 3.2), conditions, generations, compound scopes and the
 //! shared-primitive rule, determinism, and rejected input.
 
-use std::path::Path;
+mod common;
+use common::program;
 
 use glam::DVec3;
 use graftal::grammar::{run, RunErrorKind, RunOptions, RunOutput};
 use graftal::io::bridge::mesh_to_indexed;
 use graftal::kernel::{Mesh, VertId};
-use graftal::rules::compile::{compile, parse};
-use graftal::rules::diagnostic::SourceFile;
-use graftal::rules::spanned::SourceFormat;
-use graftal::rules::{Program, RuleError};
-
-fn program(text: &str) -> Result<Program, RuleError> {
-    let file = SourceFile {
-        name: "test.toml".into(),
-        text: text.into(),
-    };
-    let ast = parse(&file, SourceFormat::Toml)?;
-    compile(&file, SourceFormat::Toml, &ast, &[], Path::new("rules"))
-}
+use graftal::rules::Program;
 
 fn toml(text: &str) -> Program {
     program(text).unwrap_or_else(|e| panic!("{}", e.headline()))

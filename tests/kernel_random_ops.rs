@@ -44,7 +44,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(26);
+    let choice = rng.below(27);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -196,6 +196,12 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
             let vs = some(rng, &verts, 6);
             let _ = transform::rotate(mesh, &vs, DVec3::ZERO, DVec3::new(1.0, 2.0, 3.0), 0.3);
             "rotate"
+        }
+        25 => {
+            if let Some(e) = pick(rng, &edges) {
+                mesh.reverse_edge(e).unwrap();
+            }
+            "reverse_edge"
         }
         _ => {
             match rng.below(3) {

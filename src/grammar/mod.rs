@@ -5,12 +5,14 @@
 //!   ages — in attribute layers.
 //! - [`commands`]: the five G³ commands, planned on generation Gₙ and then
 //!   applied, so visiting order cannot change the result.
+//! - [`merge`]: the `merge` policy — new nodes merged with coinciding ones.
 //! - [`scope`]: compound-command scopes and their reference frames.
 //! - [`properties`]: what conditions and parameters read.
 //! - `run`: the step loop, rules, compounds, statistics.
 
 pub mod commands;
 pub mod graph;
+pub mod merge;
 mod properties;
 mod run;
 pub mod scope;

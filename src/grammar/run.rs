@@ -10,6 +10,7 @@ use glam::DVec3;
 use rustc_hash::FxHashMap;
 use thiserror::Error;
 
+use super::merge::Merger;
 use crate::io;
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::{self, Selection};
@@ -17,7 +18,8 @@ use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
 use crate::rules::expr::SlotSource;
 use crate::rules::program::{
-    Command, CommandKind, Condition, FrameParams, Offset, Op, ParamKind, Program, Step, Vector,
+    Command, CommandKind, Condition, FrameParams, Offset, Op, ParamKind, Policy, Program, Step,
+    Vector,
 };
 use crate::rules::random;
 
@@ -84,6 +86,8 @@ pub struct StepStats {
     /// Matched primitives another scope had already applied this command
     /// to (thesis 003 §3.3.3): not applied again, products shared.
     pub shared: usize,
+    /// Nodes merged away into coinciding ones (`policy = "merge"`).
+    pub merged: usize,
     pub created: CreatedCounts,
     pub elapsed: Duration,
 }
@@ -135,6 +139,10 @@ struct Runner<'p> {
     /// (compound step, command step, primitive) → products, for the
     /// shared-primitive rule. Looked up only, never iterated.
     applied: FxHashMap<(u32, u32, u32), Selection>,
+    /// Policies of the compound calls being run, innermost last, above the
+    /// file's default.
+    policies: Vec<Policy>,
+    merger: Merger,
 }
 
 /// Runs the program and returns the mesh with per-step statistics.
@@ -152,6 +160,8 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         scopes: Vec::new(),
         calls: Vec::new(),
         applied: FxHashMap::default(),
+        policies: vec![program.policy],
+        merger: Merger::new(),
     };
     runner.evaluate_params()?;
     let mut mesh = Mesh::new();
@@ -203,6 +213,7 @@ struct Tally {
     applied: usize,
     skipped: usize,
     shared: usize,
+    merged: usize,
 }
 
 impl Runner<'_> {
@@ -266,6 +277,7 @@ impl Runner<'_> {
         let generation = step.uid + 1;
         let mut tally = Tally::default();
         let made = if step.op.is_create() {
+            self.merger.invalidate();
             self.apply(mesh, step, &[])
                 .map_err(|m| step_error(step, RunErrorKind::Failed, m))?
         } else {
@@ -295,6 +307,8 @@ impl Runner<'_> {
                 }
                 _ => {
                     tally.applied = matched.len();
+                    // A kernel operator may move or make any vertex.
+                    self.merger.invalidate();
                     self.apply(mesh, step, &matched)
                         .map_err(|m| step_error(step, RunErrorKind::Failed, m))?
                 }
@@ -322,6 +336,7 @@ impl Runner<'_> {
             applied: 0,
             skipped: 0,
             shared: 0,
+            merged: 0,
             created: CreatedCounts::default(),
             elapsed: Duration::ZERO,
         });
@@ -331,6 +346,7 @@ impl Runner<'_> {
         stats.applied += tally.applied;
         stats.skipped += tally.skipped;
         stats.shared += tally.shared;
+        stats.merged += tally.merged;
         let c = counts(&made);
         stats.created.verts += c.verts;
         stats.created.edges += c.edges;
@@ -499,6 +515,8 @@ impl Runner<'_> {
                 order.swap(k, j);
             }
         }
+        // New nodes by plan, so they can be listed in plan order below.
+        let mut new_nodes: Vec<Vec<VertId>> = vec![Vec::new(); plans.len()];
         for k in order {
             let plan = &plans[k];
             let products = commands::apply(mesh, command.kind, plan, i64::from(generation))
@@ -507,10 +525,42 @@ impl Runner<'_> {
                 self.applied
                     .insert((call, step.uid, plan.target as u32), products.clone());
             }
+            new_nodes[k].clone_from(&products.verts);
             made.append(&products);
         }
+        // Thesis §3.1.2.1: after the command, the nodes it made (or, for
+        // edit_node, moved) are merged with those they coincide with. They
+        // are listed in plan order (ascending target), not id order: ids
+        // follow the order plans were applied in, and the first listed of
+        // several new nodes survives.
+        let touched: Vec<VertId> = if command.kind == CommandKind::EditNode {
+            plans.iter().map(|p| VertId::from_index(p.target)).collect()
+        } else {
+            new_nodes.concat()
+        };
+        match step.policy.unwrap_or(self.policy()) {
+            Policy::Merge { tolerance } => {
+                tally.merged += self
+                    .merger
+                    .merge(mesh, &touched, tolerance, &mut made)
+                    .map_err(|e| fail(format!("merging: {e}")))?;
+            }
+            Policy::None => self.merger.record(mesh, &touched),
+        }
+        // Products shared from another scope may since have been merged away.
+        made.verts.retain(|&v| mesh.contains_vert(v));
+        made.edges.retain(|&e| mesh.contains_edge(e));
+        made.faces.retain(|&f| mesh.contains_face(f));
         made.normalize();
         Ok(made)
+    }
+
+    /// The policy in force: the innermost compound call's, or the file's.
+    fn policy(&self) -> Policy {
+        *self
+            .policies
+            .last()
+            .expect("the file's policy is never popped")
     }
 
     /// Runs a compound command: one scope per matched initial primitive,
@@ -580,6 +630,7 @@ impl Runner<'_> {
             scopes.push(Scope::new(mesh, step.domain, i, reference, measure));
         }
         let mut made = Selection::new();
+        self.policies.push(step.policy.unwrap_or(self.policy()));
         for scope in scopes {
             let initial = scope.sizes();
             self.scopes.push(scope);
@@ -593,9 +644,13 @@ impl Runner<'_> {
             }
             self.calls.pop();
             let scope = self.scopes.pop().expect("pushed above");
+            if result.is_err() {
+                self.policies.pop();
+            }
             result?;
             made.append(&scope.added_since(initial));
         }
+        self.policies.pop();
         made.normalize();
         Ok(made)
     }

@@ -722,6 +722,17 @@ impl Mesh {
         }
     }
 
+    /// Swaps the ends of edge `e`: its first vertex becomes its second. Only
+    /// the edge's own record changes (each disk link moves with its vertex);
+    /// loops and faces do not depend on which end comes first.
+    pub fn reverse_edge(&mut self, e: EdgeId) -> Result<(), KernelError> {
+        self.check_edge(e)?;
+        let edge = self.edge_mut(e);
+        edge.verts.swap(0, 1);
+        edge.disk.swap(0, 1);
+        Ok(())
+    }
+
     /// Flips the winding of face `f`. Edges keep their loops; each loop now
     /// starts at the other end of its edge.
     pub fn reverse_face(&mut self, f: FaceId) -> Result<(), KernelError> {

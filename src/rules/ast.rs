@@ -42,6 +42,21 @@ pub struct RuleFile {
     /// Compound commands (`[compound.NAME]`), applied by `compound = "NAME"`.
     #[serde(default)]
     pub compound: Named<CompoundDef>,
+    /// Default policy of G³ commands about coinciding primitives.
+    #[serde(default)]
+    pub policy: Option<Spanned<PolicyName>>,
+    /// Default merge tolerance (model units).
+    #[serde(default)]
+    pub tolerance: Option<Spanned<f64>>,
+}
+
+/// What a G³ command does about primitives that coincide with the model
+/// (thesis 003 §3.1–3.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PolicyName {
+    None,
+    Merge,
 }
 
 /// A table of named definitions, in file order.
@@ -390,6 +405,10 @@ pub struct Step {
     pub compound: Option<(Spanned<String>, Spanned<CompoundCall>)>,
     /// Run the step (or the included rule) this many times in a row.
     pub repeat: Option<Spanned<i64>>,
+    /// Policy about coinciding primitives (G³ commands and compounds).
+    pub policy: Option<Spanned<PolicyName>>,
+    /// Merge tolerance for this step.
+    pub tolerance: Option<Spanned<f64>>,
     /// Keys that are neither step fields nor operators, and operators past
     /// the first: reported by the compiler at their exact position.
     pub stray_keys: Vec<Spanned<String>>,
@@ -485,7 +504,17 @@ pub const COMMAND_NAMES: &[&str] = &[
     "edit_node",
 ];
 
-pub const STEP_KEYS: &[&str] = &["name", "select", "from", "on", "rule", "compound", "repeat"];
+pub const STEP_KEYS: &[&str] = &[
+    "name",
+    "select",
+    "from",
+    "on",
+    "rule",
+    "compound",
+    "repeat",
+    "policy",
+    "tolerance",
+];
 
 /// Parameters of a G³ command (thesis 003 §2.4.3): every value may be an
 /// expression over parameters and the matched primitive's properties.
@@ -718,6 +747,8 @@ impl<'de> Deserialize<'de> for Step {
                     rule: None,
                     compound: None,
                     repeat: None,
+                    policy: None,
+                    tolerance: None,
                     stray_keys: Vec::new(),
                 };
                 while let Some(key) = map.next_key::<Spanned<String>>()? {
@@ -728,6 +759,8 @@ impl<'de> Deserialize<'de> for Step {
                         "on" => step.on = Some(map.next_value()?),
                         "rule" => step.rule = Some(map.next_value()?),
                         "repeat" => step.repeat = Some(map.next_value()?),
+                        "policy" => step.policy = Some(map.next_value()?),
+                        "tolerance" => step.tolerance = Some(map.next_value()?),
                         "compound" => step.compound = Some((key, map.next_value()?)),
                         other => match next_operation(&mut map, other)? {
                             Some(operation) if step.op.is_none() => {

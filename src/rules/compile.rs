@@ -13,8 +13,8 @@ use super::ast::{self, DomainName, Operation, ParamSpec, RuleFile, Scalar as Ast
 use super::diagnostic::{find_key, find_literal, offset_of, RuleError, SourceFile};
 use super::expr::{Expr, ExprError};
 use super::program::{
-    Command, CommandKind, Compound, Condition, FrameParams, Offset, Op, Param, ParamKind, Program,
-    Property, Scalar, Step, Vector,
+    Command, CommandKind, Compound, Condition, FrameParams, Offset, Op, Param, ParamKind, Policy,
+    Program, Property, Scalar, Step, Vector,
 };
 use super::random::stream_key;
 use super::spanned::{with_format, SourceFormat, Spanned};
@@ -608,6 +608,16 @@ pub fn compile(
     }
     let params = order_params(&compiler, &declared, params)?;
 
+    let default_tolerance = match &ast.tolerance {
+        Some(t) => check_tolerance(&compiler, t)?,
+        None => DEFAULT_TOLERANCE,
+    };
+    let policy = match ast.policy.as_ref().map(|p| p.value) {
+        Some(ast::PolicyName::Merge) => Policy::Merge {
+            tolerance: default_tolerance,
+        },
+        Some(ast::PolicyName::None) | None => Policy::None,
+    };
     let mut expander = Expander {
         c: &compiler,
         ast,
@@ -618,6 +628,7 @@ pub fn compile(
         compounds: (0..ast.compound.0.len()).map(|_| None).collect(),
         uses_graph: false,
         edges_possible: false,
+        default_tolerance,
     };
     let mut steps: Vec<Step> = Vec::new();
     if let Some(start) = &ast.start {
@@ -653,6 +664,7 @@ pub fn compile(
                     compounds: (0..ast.compound.0.len()).map(|_| None).collect(),
                     uses_graph: false,
                     edges_possible: true,
+                    default_tolerance,
                 };
                 check.compile_compound(i, None)?;
                 compounds.push(Compound {
@@ -680,7 +692,34 @@ pub fn compile(
         compounds,
         step_count,
         uses_graph,
+        policy,
     })
+}
+
+/// Merge tolerance when the file gives none (model units).
+pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+/// Largest merge tolerance accepted: beyond it whole features would weld.
+pub const MAX_TOLERANCE: f64 = 1.0;
+
+fn check_tolerance(c: &Compiler, t: &Spanned<f64>) -> Result<f64, RuleError> {
+    let span = t
+        .span
+        .clone()
+        .or_else(|| find_key(&c.file.text, "tolerance"));
+    if !(0.0..=MAX_TOLERANCE).contains(&t.value) {
+        return Err(c
+            .error(
+                span,
+                format!(
+                    "`tolerance` must be between 0 and {MAX_TOLERANCE} (model units), got {}",
+                    t.value
+                ),
+            )
+            .with_help(
+                "nodes closer than the tolerance are merged; 1e-6 suits models of unit size",
+            ));
+    }
+    Ok(t.value)
 }
 
 fn compile_param(
@@ -877,6 +916,8 @@ struct Expander<'c, 'a> {
     /// Whether the model may have an edge once the steps expanded so far
     /// have run (an over-approximation: only `false` is a certainty).
     edges_possible: bool,
+    /// The file's `tolerance`, for steps that turn merging on.
+    default_tolerance: f64,
 }
 
 /// Most steps a rule file may unroll to: a guard against `repeat = 1e9`.
@@ -979,6 +1020,8 @@ impl Expander<'_, '_> {
             (step.select.is_some(), "select"),
             (step.from.is_some(), "from"),
             (step.on.is_some(), "on"),
+            (step.policy.is_some(), "policy"),
+            (step.tolerance.is_some(), "tolerance"),
         ] {
             if present {
                 return Err(c.error(
@@ -1282,6 +1325,7 @@ impl Expander<'_, '_> {
             }
             None => c.file.name.clone(),
         };
+        let policy = self.step_policy(step, &op, &op_key.value)?;
         Ok(Step {
             uid,
             key: stream_key(&format!("step/{path}")),
@@ -1291,7 +1335,59 @@ impl Expander<'_, '_> {
             select,
             from,
             op,
+            policy,
         })
+    }
+
+    /// A step's own `policy` and `tolerance`; they belong to G³ commands
+    /// and compound calls only.
+    fn step_policy(
+        &self,
+        step: &ast::Step,
+        op: &Op,
+        op_name: &str,
+    ) -> Result<Option<Policy>, RuleError> {
+        let c = self.c;
+        let key_span = |key: &str| find_key(&c.file.text, key);
+        if step.policy.is_none() && step.tolerance.is_none() {
+            return Ok(None);
+        }
+        if !matches!(op, Op::Command(_) | Op::Compound { .. }) {
+            let (span, key) = match &step.policy {
+                Some(p) => (p.span.clone().or_else(|| key_span("policy")), "policy"),
+                None => (
+                    step.tolerance
+                        .as_ref()
+                        .and_then(|t| t.span.clone())
+                        .or_else(|| key_span("tolerance")),
+                    "tolerance",
+                ),
+            };
+            return Err(c.error(
+                span,
+                format!("`{key}` belongs to G³ commands and compound calls, not `{op_name}`"),
+            ));
+        }
+        let tolerance = match &step.tolerance {
+            Some(t) => Some(check_tolerance(c, t)?),
+            None => None,
+        };
+        match (step.policy.as_ref().map(|p| p.value), tolerance) {
+            (Some(ast::PolicyName::Merge), t) => Ok(Some(Policy::Merge {
+                tolerance: t.unwrap_or(self.default_tolerance),
+            })),
+            (Some(ast::PolicyName::None), None) => Ok(Some(Policy::None)),
+            (_, Some(_)) => Err(c
+                .error(
+                    step.tolerance
+                        .as_ref()
+                        .and_then(|t| t.span.clone())
+                        .or_else(|| key_span("tolerance")),
+                    "`tolerance` is the distance of `policy = \"merge\"`",
+                )
+                .with_help("add `policy = \"merge\"` to this step, or remove `tolerance`")),
+            (None, None) => unreachable!("returned above"),
+        }
     }
 }
 

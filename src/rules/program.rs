@@ -36,6 +36,19 @@ pub struct Program {
     /// Whether any step is a G³ command or compound, so the engine keeps
     /// node radius, frames and ages.
     pub uses_graph: bool,
+    /// The file's default policy for G³ commands.
+    pub policy: Policy,
+}
+
+/// What a G³ command does about primitives that coincide with the model
+/// (thesis 003 §3.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Policy {
+    /// Products are added as they are.
+    None,
+    /// Nodes the command made or moved are merged with the nodes within
+    /// `tolerance`, and the topology repaired.
+    Merge { tolerance: f64 },
 }
 
 /// A compound command (thesis 003 §3.3): run its steps inside a scope made
@@ -201,6 +214,9 @@ pub struct Step {
     /// (every copy of a repeated step).
     pub from: Option<Vec<u32>>,
     pub op: Op,
+    /// The step's own policy (G³ commands and compounds); `None` inherits
+    /// the enclosing compound call's, or the file's.
+    pub policy: Option<Policy>,
 }
 
 #[derive(Debug, Clone)]

@@ -67,6 +67,8 @@ pub struct MergeResult {
     pub survivors: Vec<VertId>,
     /// Faces that did not come back (see the module overview).
     pub faces_removed: usize,
+    /// Faces made from the pieces of degenerate faces, ascending.
+    pub remade: Vec<FaceId>,
 }
 
 /// Welds the given vertices that lie within `distance` of each other (see
@@ -243,7 +245,7 @@ impl UnionFind {
 
 /// For each point, the lowest index of its cluster: the connected component
 /// of the graph joining points at most `distance` apart.
-fn cluster_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
+pub(super) fn cluster_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
     if distance > 0.0 {
         return grid_roots(points, distance);
     }
@@ -349,7 +351,7 @@ fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
 /// distances are checked). Truncation plus a correction instead of
 /// `f64::floor`, which is a library call on baseline x86-64.
 #[inline]
-fn cell_coordinate(x: f64, distance: f64) -> i64 {
+pub(super) fn cell_coordinate(x: f64, distance: f64) -> i64 {
     let q = x / distance;
     let t = q as i64;
     if (t as f64) > q {
@@ -525,10 +527,22 @@ fn weld(mesh: &mut Mesh, verts: &[VertId], targets: &[u32]) -> Result<MergeResul
             gone.push((verts[i], verts[t as usize]));
         }
     }
+    weld_gone(mesh, gone, survivors)
+}
+
+/// Glues each `(vertex, survivor)` of `gone` (ascending by vertex; no
+/// survivor is itself glued) and repairs the faces, steps 1–4 of the module
+/// overview. `survivors` is reported back as given.
+pub(super) fn weld_gone(
+    mesh: &mut Mesh,
+    gone: Vec<(VertId, VertId)>,
+    survivors: Vec<VertId>,
+) -> Result<MergeResult, OpError> {
     let mut result = MergeResult {
         merged: gone.len(),
         survivors,
         faces_removed: 0,
+        remade: Vec::new(),
     };
     if gone.is_empty() {
         return Ok(result);
@@ -605,12 +619,14 @@ fn weld(mesh: &mut Mesh, verts: &[VertId], targets: &[u32]) -> Result<MergeResul
             for (name, &value) in face_layers.iter().zip(&face.attrs) {
                 mesh.set_attr(name, Domain::Face, f.index(), value);
             }
+            result.remade.push(f);
             made_any = true;
         }
         if !made_any {
             result.faces_removed += 1;
         }
     }
+    result.remade.sort_unstable();
     Ok(result)
 }
 

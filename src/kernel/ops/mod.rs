@@ -14,6 +14,7 @@
 //! | [`select`] | from verts / edges / faces, region extend / reduce |
 //! | [`delete`] | delete (all / faces / faces and edges), duplicate, dissolve edges |
 //! | [`merge`] | merge by distance, mirror |
+//! | [`coincide`] | incremental merge of new vertices into a growing mesh (thesis 003 §3.1) |
 //! | [`extrude`] | extrude verts, edges, faces (individual), face region |
 //! | [`inset`] | inset faces (individual), inset region |
 //! | [`split`] | split edges (cuts, ratios) |
@@ -25,6 +26,7 @@ use thiserror::Error;
 use super::euler::KernelError;
 use super::ids::{EdgeId, FaceId, VertId};
 
+pub mod coincide;
 pub mod create;
 pub mod delete;
 pub mod extrude;
