@@ -1,6 +1,6 @@
 //! Criterion benchmarks for the G³ engine: a synthetic grammar grown to
-//! 10³…10⁶ primitives (cost per primitive must stay flat), and the house
-//! and sofa examples end to end.
+//! 10³…10⁶ primitives (cost per primitive must stay flat), and the house,
+//! sofa and tree-in-box examples end to end.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -38,7 +38,7 @@ fn grammar(c: &mut Criterion) {
             |b, p| b.iter(|| black_box(run(p, &RunOptions::default()).unwrap())),
         );
     }
-    for example in ["house", "sofa"] {
+    for example in ["house", "sofa", "tree-in-box"] {
         let program = compile_file(&rules(&format!("rules/{example}.toml")), &[]).unwrap();
         group.throughput(Throughput::Elements(primitives(&program)));
         group.bench_function(example, |b| {

@@ -45,6 +45,8 @@ const OPEN_EXAMPLES: &[&str] = &[
     "house",
     "cupboard",
     "sofa",
+    "tree-in-box",
+    "flags",
 ];
 
 #[test]
@@ -334,4 +336,46 @@ fn info_and_convert_round_trip() {
     let o = graftal(&["check", "rules/chair.toml"]);
     assert!(o.status.success());
     assert!(String::from_utf8_lossy(&o.stdout).contains("ok (6 parameters, 6 steps)"));
+}
+
+#[test]
+fn mesh_gates_report_crossing_faces_and_close_vertices() {
+    // The box of thesis Fig 3.1 grown without merging: its sides touch
+    // along coinciding but separate edges; merged, they share them.
+    let dir = temp_dir();
+    for (policy, pairs) in [("none", (4, 4)), ("merge", (0, 0))] {
+        let rules = dir.path().join(format!("box-{policy}.toml"));
+        std::fs::write(
+            &rules,
+            format!(
+                "policy = \"{policy}\"\n[start]\ngrid = {{ segments = [1, 1], size = [1, 1] }}\n[[step]]\ncreate_face = {{ relative = false, heading = [0, 0, 1], length = 1 }}\n[[step]]\nselect = \"abs(dir.z) > 0.1 && abs(dir.z) < 0.9\"\nsplit_edge = {{ relative = false, heading = [\"dir.x\", \"dir.y\", 0], length = 1 }}\n"
+            ),
+        )
+        .unwrap();
+        let mesh = dir.path().join(format!("box-{policy}.obj"));
+        let o = graftal(&[
+            "run",
+            path_str(&rules),
+            "-o",
+            path_str(&mesh),
+            "--stats",
+            "-",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let stats: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(
+            stats["mesh"]["self_intersecting_face_pairs"], pairs.0,
+            "{policy}"
+        );
+        assert_eq!(stats["mesh"]["close_vertex_pairs"], pairs.1, "{policy}");
+        let o = graftal(&["info", path_str(&mesh), "--json"]);
+        let info: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(
+            info["self_intersecting_face_pairs"], pairs.0,
+            "{policy}: {info}"
+        );
+        assert_eq!(info["close_vertex_pairs"], pairs.1, "{policy}");
+    }
+    let o = graftal(&["info", "rules/mill-base.obj", "--tolerance", "nan"]);
+    assert_eq!(o.status.code(), Some(2));
 }

@@ -3,7 +3,7 @@
 //! shared-primitive rule, determinism, and rejected input.
 
 mod common;
-use common::program;
+use common::{assert_rejected, program};
 
 use glam::DVec3;
 use graftal::grammar::{run, RunErrorKind, RunOptions, RunOutput};
@@ -369,13 +369,6 @@ repeat = 30
     assert!(err.message.contains("limit of 1000"), "{}", err.message);
 }
 
-fn error_of(text: &str) -> String {
-    match program(text) {
-        Ok(_) => panic!("expected an error for:\n{text}"),
-        Err(e) => e.headline(),
-    }
-}
-
 #[test]
 fn bad_grammar_input_is_rejected_with_a_location() {
     let cases: &[(&str, &str)] = &[
@@ -420,13 +413,7 @@ fn bad_grammar_input_is_rejected_with_a_location() {
             "test.toml:4:1: relative `edit_node` needs a preceding edge",
         ),
     ];
-    for (text, expected) in cases {
-        let message = error_of(text);
-        assert!(
-            message.contains(expected),
-            "{message}\n  should contain: {expected}"
-        );
-    }
+    assert_rejected(cases);
 }
 
 #[test]

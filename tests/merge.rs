@@ -4,7 +4,7 @@
 //! kernel-level fixtures in `kernel::ops::coincide`.
 
 mod common;
-use common::program;
+use common::{assert_rejected, program};
 
 use graftal::grammar::{run, RunOptions, RunOutput, StepStats};
 
@@ -266,14 +266,5 @@ fn bad_policy_input_is_rejected_with_a_location() {
             "a step that includes a rule takes no `policy`",
         ),
     ];
-    for (text, expected) in cases {
-        let message = match program(text) {
-            Ok(_) => panic!("expected an error for:\n{text}"),
-            Err(e) => e.headline(),
-        };
-        assert!(
-            message.contains(expected),
-            "{message}\n  should contain: {expected}"
-        );
-    }
+    assert_rejected(cases);
 }

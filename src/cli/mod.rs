@@ -76,6 +76,9 @@ pub enum Command {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+        /// Report vertex pairs at most this far apart (model units).
+        #[arg(long, default_value_t = stats::CLOSE_TOLERANCE, value_parser = parse_tolerance)]
+        tolerance: f64,
     },
     /// Convert a mesh between formats (by extension).
     Convert {
@@ -214,7 +217,8 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             write_output(&output, format, &indexed)?;
             let report = result.mesh.report();
             if let Some(stats_path) = stats {
-                let json = stats::run_stats(&program, &result, &report, timings);
+                let gates = stats::gates(&result.mesh, stats::CLOSE_TOLERANCE);
+                let json = stats::run_stats(&program, &result, &report, &gates, timings);
                 if stats_path.as_os_str() == "-" {
                     println!("{json}");
                 } else {
@@ -242,15 +246,20 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             );
             Ok(())
         }
-        Command::Info { mesh, json } => {
+        Command::Info {
+            mesh,
+            json,
+            tolerance,
+        } => {
             let indexed = io::read_mesh(&mesh).map_err(|e| Failure::Input(e.to_string()))?;
             let (kernel_mesh, import) = bridge::mesh_from_indexed_report(&indexed)
                 .map_err(|e| Failure::Input(format!("{}: {e}", mesh.display())))?;
             let report = kernel_mesh.report();
+            let gates = stats::gates(&kernel_mesh, tolerance);
             if json {
-                println!("{}", stats::info_json(&mesh, &report, &import));
+                println!("{}", stats::info_json(&mesh, &report, &gates, &import));
             } else {
-                print!("{}", stats::info_text(&mesh, &report, &import));
+                print!("{}", stats::info_text(&mesh, &report, &gates, &import));
             }
             Ok(())
         }
@@ -263,5 +272,17 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let indexed = io::read_mesh(&input).map_err(|e| Failure::Input(e.to_string()))?;
             write_output(&output, format, &indexed)
         }
+    }
+}
+
+/// A distance for `--tolerance`: finite and not negative.
+fn parse_tolerance(text: &str) -> Result<f64, String> {
+    let value: f64 = text
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number"))?;
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("must be finite and not negative, got {text}"))
     }
 }

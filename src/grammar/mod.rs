@@ -6,12 +6,15 @@
 //! - [`commands`]: the five G³ commands, planned on generation Gₙ and then
 //!   applied, so visiting order cannot change the result.
 //! - [`merge`]: the `merge` policy — new nodes merged with coinciding ones.
+//! - [`intersect`]: the `intersect` policy — would-be products tested
+//!   against the model before an application is made.
 //! - [`scope`]: compound-command scopes and their reference frames.
 //! - [`properties`]: what conditions and parameters read.
 //! - `run`: the step loop, rules, compounds, statistics.
 
 pub mod commands;
 pub mod graph;
+pub mod intersect;
 pub mod merge;
 mod properties;
 mod run;

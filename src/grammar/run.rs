@@ -10,6 +10,7 @@ use glam::DVec3;
 use rustc_hash::FxHashMap;
 use thiserror::Error;
 
+use super::intersect::Guard;
 use super::merge::Merger;
 use crate::io;
 use crate::kernel::ops::extrude::ExtrudeOffset;
@@ -18,8 +19,8 @@ use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
 use crate::rules::expr::SlotSource;
 use crate::rules::program::{
-    Command, CommandKind, Condition, FrameParams, Offset, Op, ParamKind, Policy, Program, Step,
-    Vector,
+    Command, CommandKind, Compound, Condition, FrameParams, Offset, OnIntersection, Op, ParamKind,
+    Policy, Program, Step, Vector,
 };
 use crate::rules::random;
 
@@ -88,6 +89,13 @@ pub struct StepStats {
     pub shared: usize,
     /// Nodes merged away into coinciding ones (`policy = "merge"`).
     pub merged: usize,
+    /// Applications not made because a product would intersect the model
+    /// (`policy = "intersect"`).
+    pub rejected: usize,
+    /// Applications rolled back: for a compound step, its scopes cancelled
+    /// by `cancel_compound`; for a step, the rule applications it
+    /// cancelled by `cancel_rule`.
+    pub cancelled: usize,
     pub created: CreatedCounts,
     pub elapsed: Duration,
 }
@@ -142,7 +150,10 @@ struct Runner<'p> {
     /// Policies of the compound calls being run, innermost last, above the
     /// file's default.
     policies: Vec<Policy>,
+    /// Reactions to intersections of the compound calls being run.
+    reactions: Vec<OnIntersection>,
     merger: Merger,
+    guard: Guard,
 }
 
 /// Runs the program and returns the mesh with per-step statistics.
@@ -161,18 +172,18 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         calls: Vec::new(),
         applied: FxHashMap::default(),
         policies: vec![program.policy],
+        reactions: vec![program.on_intersection],
         merger: Merger::new(),
+        guard: Guard::new(),
     };
     runner.evaluate_params()?;
     let mut mesh = Mesh::new();
     if program.uses_graph {
         graph::ensure_layers(&mut mesh);
     }
-    for step in &program.steps {
-        runner.run_step(&mut mesh, step)?;
-        // Records of the shared-primitive rule live for one top-level step.
-        runner.applied.clear();
-    }
+    runner
+        .run_steps(&mut mesh, &program.steps, true)
+        .map_err(Stop::into_error)?;
     let params = program
         .param_names
         .iter()
@@ -185,6 +196,50 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         params,
         steps: runner.stats.into_iter().flatten().collect(),
     })
+}
+
+/// Why running stopped early: a failure, or an intersection that cancels
+/// the innermost compound or rule application (caught by the one that
+/// rolls back; a cancel nobody catches becomes a failure).
+enum Stop {
+    Fail(RunError),
+    Cancel(CancelLevel, RunError),
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum CancelLevel {
+    Compound,
+    Rule,
+}
+
+impl From<RunError> for Stop {
+    fn from(e: RunError) -> Self {
+        Stop::Fail(e)
+    }
+}
+
+impl Stop {
+    fn into_error(self) -> RunError {
+        match self {
+            Stop::Fail(e) => e,
+            Stop::Cancel(level, mut e) => {
+                let what = match level {
+                    CancelLevel::Compound => {
+                        "`cancel_compound`, but no compound application is running"
+                    }
+                    CancelLevel::Rule => "`cancel_rule`, but no rule application is running",
+                };
+                e.message = format!("{}; {what}", e.message);
+                e
+            }
+        }
+    }
+}
+
+/// The state a cancelled application rolls back to.
+struct Snapshot {
+    mesh: Mesh,
+    applied: FxHashMap<(u32, u32, u32), Selection>,
 }
 
 fn step_error(step: &Step, kind: RunErrorKind, message: String) -> RunError {
@@ -214,6 +269,8 @@ struct Tally {
     skipped: usize,
     shared: usize,
     merged: usize,
+    rejected: usize,
+    cancelled: usize,
 }
 
 impl Runner<'_> {
@@ -272,46 +329,79 @@ impl Runner<'_> {
         Ok(())
     }
 
-    fn run_step(&mut self, mesh: &mut Mesh, step: &Step) -> Result<(), RunError> {
+    /// Runs a list of steps (the program's, or a compound's). With `top`,
+    /// records of the shared-primitive rule are dropped after each step.
+    /// When the program may cancel rule applications, the mesh is
+    /// snapshotted as each rule application starts; a `cancel_rule` from one
+    /// of its steps restores the snapshot and skips the application's other
+    /// steps.
+    fn run_steps(&mut self, mesh: &mut Mesh, steps: &[Step], top: bool) -> Result<(), Stop> {
+        // Rule applications running, outermost first, with their snapshots.
+        let mut open: Vec<(u32, Option<Snapshot>)> = Vec::new();
+        let mut i = 0;
+        while i < steps.len() {
+            let step = &steps[i];
+            let depth = open
+                .iter()
+                .zip(&step.rule_instances)
+                .take_while(|((a, _), b)| a == *b)
+                .count();
+            open.truncate(depth);
+            for &instance in &step.rule_instances[depth..] {
+                let snapshot = self.program.may_cancel.then(|| self.snapshot(mesh));
+                open.push((instance, snapshot));
+            }
+            let result = self.run_step(mesh, step);
+            if top {
+                self.applied.clear();
+            }
+            match result {
+                Ok(()) => i += 1,
+                Err(Stop::Cancel(CancelLevel::Rule, error)) => {
+                    let Some((instance, snapshot)) = open.pop() else {
+                        return Err(Stop::Cancel(CancelLevel::Rule, error));
+                    };
+                    let snapshot =
+                        snapshot.expect("snapshots are kept when cancelling is possible");
+                    self.restore(mesh, snapshot);
+                    while i < steps.len() && steps[i].rule_instances.contains(&instance) {
+                        self.created[steps[i].uid as usize] = Selection::new();
+                        i += 1;
+                    }
+                }
+                Err(other) => return Err(other),
+            }
+        }
+        Ok(())
+    }
+
+    fn snapshot(&self, mesh: &Mesh) -> Snapshot {
+        Snapshot {
+            mesh: mesh.clone(),
+            applied: self.applied.clone(),
+        }
+    }
+
+    /// Rolls back to `snapshot`; the vertex grid and intersection index are
+    /// rebuilt when next needed.
+    fn restore(&mut self, mesh: &mut Mesh, snapshot: Snapshot) {
+        *mesh = snapshot.mesh;
+        self.applied = snapshot.applied;
+        self.merger.invalidate();
+        self.guard.invalidate();
+    }
+
+    fn run_step(&mut self, mesh: &mut Mesh, step: &Step) -> Result<(), Stop> {
         let started = Instant::now();
         let generation = step.uid + 1;
         let mut tally = Tally::default();
-        let made = if step.op.is_create() {
-            self.merger.invalidate();
-            self.apply(mesh, step, &[])
-                .map_err(|m| step_error(step, RunErrorKind::Failed, m))?
-        } else {
-            let candidates = self.candidates(mesh, step);
-            tally.candidates = candidates.len();
-            let extra = match &step.op {
-                Op::Compound { index, .. } => self.program.compounds[*index].select.as_ref(),
-                _ => None,
-            };
-            let matched: Vec<usize> = candidates
-                .into_iter()
-                .filter(|&i| {
-                    [step.select.as_ref(), extra]
-                        .into_iter()
-                        .flatten()
-                        .all(|c| self.eval(mesh, step, generation, i, step.domain, c) != 0.0)
-                })
-                .collect();
-            tally.matched = matched.len();
-            match &step.op {
-                Op::Command(command) => {
-                    self.run_command(mesh, step, command, &matched, &mut tally)?
-                }
-                Op::Compound { index, frame } => {
-                    tally.applied = matched.len();
-                    self.run_compound(mesh, step, *index, frame, &matched)?
-                }
-                _ => {
-                    tally.applied = matched.len();
-                    // A kernel operator may move or make any vertex.
-                    self.merger.invalidate();
-                    self.apply(mesh, step, &matched)
-                        .map_err(|m| step_error(step, RunErrorKind::Failed, m))?
-                }
+        let made = match self.step_products(mesh, step, generation, &mut tally) {
+            Ok(made) => made,
+            Err(stop) => {
+                // A cancelled or failed run still counts what it matched
+                // and rejected.
+                self.tally(step, &tally, &Selection::new(), started);
+                return Err(stop);
             }
         };
         for scope in &mut self.scopes {
@@ -327,6 +417,13 @@ impl Runner<'_> {
             })?;
         }
         self.check_size(mesh, step, 0)?;
+        self.tally(step, &tally, &made, started);
+        self.created[step.uid as usize] = made;
+        Ok(())
+    }
+
+    /// Adds one run of `step` to its statistics.
+    fn tally(&mut self, step: &Step, tally: &Tally, made: &Selection, started: Instant) {
         let stats = self.stats[step.uid as usize].get_or_insert_with(|| StepStats {
             name: step.name.clone(),
             op: step.op.name(),
@@ -337,6 +434,8 @@ impl Runner<'_> {
             skipped: 0,
             shared: 0,
             merged: 0,
+            rejected: 0,
+            cancelled: 0,
             created: CreatedCounts::default(),
             elapsed: Duration::ZERO,
         });
@@ -347,13 +446,62 @@ impl Runner<'_> {
         stats.skipped += tally.skipped;
         stats.shared += tally.shared;
         stats.merged += tally.merged;
-        let c = counts(&made);
+        stats.rejected += tally.rejected;
+        stats.cancelled += tally.cancelled;
+        let c = counts(made);
         stats.created.verts += c.verts;
         stats.created.edges += c.edges;
         stats.created.faces += c.faces;
         stats.elapsed += started.elapsed();
-        self.created[step.uid as usize] = made;
-        Ok(())
+    }
+
+    /// What the step makes (running it), with its counts in `tally`.
+    fn step_products(
+        &mut self,
+        mesh: &mut Mesh,
+        step: &Step,
+        generation: u32,
+        tally: &mut Tally,
+    ) -> Result<Selection, Stop> {
+        if step.op.is_create() {
+            self.merger.invalidate();
+            self.guard.invalidate();
+            return Ok(self
+                .apply(mesh, step, &[])
+                .map_err(|m| step_error(step, RunErrorKind::Failed, m))?);
+        }
+        let candidates = self.candidates(mesh, step);
+        tally.candidates = candidates.len();
+        let extra = match &step.op {
+            Op::Compound { index, .. } => self.program.compounds[*index].select.as_ref(),
+            _ => None,
+        };
+        let matched: Vec<usize> = candidates
+            .into_iter()
+            .filter(|&i| {
+                [step.select.as_ref(), extra]
+                    .into_iter()
+                    .flatten()
+                    .all(|c| self.eval(mesh, step, generation, i, step.domain, c) != 0.0)
+            })
+            .collect();
+        tally.matched = matched.len();
+        match &step.op {
+            Op::Command(command) => self.run_command(mesh, step, command, &matched, tally),
+            Op::Compound { index, frame } => {
+                tally.applied = matched.len();
+                self.run_compound(mesh, step, *index, frame, &matched, tally)
+            }
+            _ => {
+                tally.applied = matched.len();
+                // A kernel operator may move, make or remove anything.
+                self.merger.invalidate();
+                self.guard.invalidate();
+                Ok(self
+                    .apply(mesh, step, &matched)
+                    .map_err(|m| step_error(step, RunErrorKind::Failed, m))?)
+            }
+        }
     }
 
     fn check_size(&self, mesh: &Mesh, step: &Step, coming: usize) -> Result<(), RunError> {
@@ -454,7 +602,7 @@ impl Runner<'_> {
         command: &Command,
         matched: &[usize],
         tally: &mut Tally,
-    ) -> Result<Selection, RunError> {
+    ) -> Result<Selection, Stop> {
         let generation = step.uid + 1;
         let fail = |m: String| step_error(step, RunErrorKind::Failed, m);
         let call = self.calls.last().copied();
@@ -472,10 +620,10 @@ impl Runner<'_> {
             if let Some(p) = &command.probability {
                 let p = self.eval(mesh, step, generation, i, step.domain, p);
                 if !(0.0..=1.0).contains(&p) {
-                    return Err(fail(format!(
+                    return Err(Stop::Fail(fail(format!(
                         "probability evaluates to {p} for {} {i}; it must be in [0, 1]",
                         step.domain
-                    )));
+                    ))));
                 }
                 if random::unit(self.seed, step.key, i as u64, 0) >= p {
                     tally.skipped += 1;
@@ -507,8 +655,12 @@ impl Runner<'_> {
         // Each plan adds at most a node, a few edges and faces per side.
         let coming: usize = plans.iter().map(|p| 4 + 2 * p.nodes.len()).sum();
         self.check_size(mesh, step, coming)?;
+        let policy = step.policy.unwrap_or(self.policy());
+        let testing = policy == Policy::Intersect;
         let mut order: Vec<usize> = (0..plans.len()).collect();
-        if let Some(shuffle) = self.shuffle {
+        // Under `intersect` an application is tested against what the ones
+        // before it made, so the order stays canonical (ascending target).
+        if let (Some(shuffle), false) = (self.shuffle, testing) {
             // Testing hook: a seeded Fisher–Yates shuffle.
             for k in (1..order.len()).rev() {
                 let j = random::int_in(shuffle, 0, k as u64, 0, 0, k as i64) as usize;
@@ -519,8 +671,40 @@ impl Runner<'_> {
         let mut new_nodes: Vec<Vec<VertId>> = vec![Vec::new(); plans.len()];
         for k in order {
             let plan = &plans[k];
+            if testing && self.guard.would_intersect(mesh, command.kind, plan) {
+                tally.rejected += 1;
+                tally.applied -= 1;
+                let reaction = step.on_intersection.unwrap_or(self.reaction());
+                let error = || {
+                    step_error(
+                        step,
+                        RunErrorKind::Failed,
+                        format!(
+                            "applied to {} {}, `{}` would make a primitive that intersects the model",
+                            step.domain,
+                            plan.target,
+                            step.op.name()
+                        ),
+                    )
+                };
+                match reaction {
+                    OnIntersection::Skip => continue,
+                    OnIntersection::Error => return Err(Stop::Fail(error())),
+                    OnIntersection::CancelCompound => {
+                        tally.cancelled += 1;
+                        return Err(Stop::Cancel(CancelLevel::Compound, error()));
+                    }
+                    OnIntersection::CancelRule => {
+                        tally.cancelled += 1;
+                        return Err(Stop::Cancel(CancelLevel::Rule, error()));
+                    }
+                }
+            }
             let products = commands::apply(mesh, command.kind, plan, i64::from(generation))
                 .map_err(|m| fail(format!("{} {}: {m}", step.domain, plan.target)))?;
+            if testing {
+                self.guard.accept(mesh, &products);
+            }
             if let Some(call) = call {
                 self.applied
                     .insert((call, step.uid, plan.target as u32), products.clone());
@@ -538,14 +722,26 @@ impl Runner<'_> {
         } else {
             new_nodes.concat()
         };
-        match step.policy.unwrap_or(self.policy()) {
+        let reshapes = matches!(
+            command.kind,
+            CommandKind::SplitEdge | CommandKind::SplitFace | CommandKind::EditNode
+        );
+        match policy {
             Policy::Merge { tolerance } => {
                 tally.merged += self
                     .merger
                     .merge(mesh, &touched, tolerance, &mut made)
                     .map_err(|e| fail(format!("merging: {e}")))?;
+                self.guard.invalidate();
             }
-            Policy::None => self.merger.record(mesh, &touched),
+            Policy::None => {
+                self.merger.record(mesh, &touched);
+                self.guard.record(mesh, &made, reshapes);
+            }
+            Policy::Intersect => {
+                self.merger.record(mesh, &touched);
+                self.guard.finish_command(reshapes);
+            }
         }
         // Products shared from another scope may since have been merged away.
         made.verts.retain(|&v| mesh.contains_vert(v));
@@ -553,6 +749,15 @@ impl Runner<'_> {
         made.faces.retain(|&f| mesh.contains_face(f));
         made.normalize();
         Ok(made)
+    }
+
+    /// The reaction to intersections in force: the innermost compound
+    /// call's, or the file's.
+    fn reaction(&self) -> OnIntersection {
+        *self
+            .reactions
+            .last()
+            .expect("the file's reaction is never popped")
     }
 
     /// The policy in force: the innermost compound call's, or the file's.
@@ -573,7 +778,8 @@ impl Runner<'_> {
         index: usize,
         frame: &FrameParams,
         matched: &[usize],
-    ) -> Result<Selection, RunError> {
+        tally: &mut Tally,
+    ) -> Result<Selection, Stop> {
         let generation = step.uid + 1;
         let compound = &self.program.compounds[index];
         let parent = self.reference();
@@ -618,39 +824,57 @@ impl Runner<'_> {
                 radius: radius * radius_unit,
             };
             if !(reference.length.is_finite() && reference.radius.is_finite()) {
-                return Err(step_error(
+                return Err(Stop::Fail(step_error(
                     step,
                     RunErrorKind::Failed,
                     format!(
                         "compound `{}` on {} {i}: length or radius is not finite",
                         compound.name, step.domain
                     ),
-                ));
+                )));
             }
             scopes.push(Scope::new(mesh, step.domain, i, reference, measure));
         }
-        let mut made = Selection::new();
         self.policies.push(step.policy.unwrap_or(self.policy()));
+        self.reactions
+            .push(step.on_intersection.unwrap_or(self.reaction()));
+        let result = self.run_scopes(mesh, step, compound, scopes, tally);
+        self.policies.pop();
+        self.reactions.pop();
+        result
+    }
+
+    /// Runs the compound's steps in each scope in turn. A `cancel_compound`
+    /// from inside a scope rolls the mesh back to before that scope ran.
+    fn run_scopes(
+        &mut self,
+        mesh: &mut Mesh,
+        step: &Step,
+        compound: &Compound,
+        scopes: Vec<Scope>,
+        tally: &mut Tally,
+    ) -> Result<Selection, Stop> {
+        let mut made = Selection::new();
         for scope in scopes {
             let initial = scope.sizes();
+            let snapshot = self.program.may_cancel.then(|| self.snapshot(mesh));
             self.scopes.push(scope);
             self.calls.push(step.uid);
-            let mut result = Ok(());
-            for inner in &compound.steps {
-                result = self.run_step(mesh, inner);
-                if result.is_err() {
-                    break;
-                }
-            }
+            let result = self.run_steps(mesh, &compound.steps, false);
             self.calls.pop();
             let scope = self.scopes.pop().expect("pushed above");
-            if result.is_err() {
-                self.policies.pop();
+            match result {
+                Ok(()) => made.append(&scope.added_since(initial)),
+                Err(Stop::Cancel(CancelLevel::Compound, _)) => {
+                    let snapshot =
+                        snapshot.expect("snapshots are kept when cancelling is possible");
+                    self.restore(mesh, snapshot);
+                    tally.applied -= 1;
+                    tally.cancelled += 1;
+                }
+                Err(other) => return Err(other),
             }
-            result?;
-            made.append(&scope.added_since(initial));
         }
-        self.policies.pop();
         made.normalize();
         Ok(made)
     }

@@ -8,6 +8,9 @@
 //! - [`ops`] holds the high-level modelling operators built on Euler
 //!   operators, each returning a typed result naming what it made.
 //! - [`polygon`] holds pure polygon geometry (normals, triangulation).
+//! - [`intersect`] holds exact intersection predicates, a BVH broad phase,
+//!   self-intersection, an incremental index for growth tests and
+//!   close-vertex detection.
 //!
 //! The kernel knows nothing of rule files, grammars or file formats.
 
@@ -15,6 +18,7 @@ mod arena;
 pub mod attrs;
 pub mod euler;
 pub mod ids;
+pub mod intersect;
 pub mod measure;
 pub mod mesh;
 pub mod ops;

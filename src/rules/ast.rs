@@ -48,6 +48,19 @@ pub struct RuleFile {
     /// Default merge tolerance (model units).
     #[serde(default)]
     pub tolerance: Option<Spanned<f64>>,
+    /// Default reaction to an intersecting product (`policy = "intersect"`).
+    #[serde(default)]
+    pub on_intersection: Option<Spanned<OnIntersectionName>>,
+}
+
+/// What happens when a product would intersect the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OnIntersectionName {
+    Skip,
+    CancelCompound,
+    CancelRule,
+    Error,
 }
 
 /// What a G³ command does about primitives that coincide with the model
@@ -57,6 +70,7 @@ pub struct RuleFile {
 pub enum PolicyName {
     None,
     Merge,
+    Intersect,
 }
 
 /// A table of named definitions, in file order.
@@ -409,6 +423,8 @@ pub struct Step {
     pub policy: Option<Spanned<PolicyName>>,
     /// Merge tolerance for this step.
     pub tolerance: Option<Spanned<f64>>,
+    /// Reaction to an intersecting product.
+    pub on_intersection: Option<Spanned<OnIntersectionName>>,
     /// Keys that are neither step fields nor operators, and operators past
     /// the first: reported by the compiler at their exact position.
     pub stray_keys: Vec<Spanned<String>>,
@@ -749,6 +765,7 @@ impl<'de> Deserialize<'de> for Step {
                     repeat: None,
                     policy: None,
                     tolerance: None,
+                    on_intersection: None,
                     stray_keys: Vec::new(),
                 };
                 while let Some(key) = map.next_key::<Spanned<String>>()? {
@@ -761,6 +778,7 @@ impl<'de> Deserialize<'de> for Step {
                         "repeat" => step.repeat = Some(map.next_value()?),
                         "policy" => step.policy = Some(map.next_value()?),
                         "tolerance" => step.tolerance = Some(map.next_value()?),
+                        "on_intersection" => step.on_intersection = Some(map.next_value()?),
                         "compound" => step.compound = Some((key, map.next_value()?)),
                         other => match next_operation(&mut map, other)? {
                             Some(operation) if step.op.is_none() => {

@@ -13,8 +13,8 @@ use super::ast::{self, DomainName, Operation, ParamSpec, RuleFile, Scalar as Ast
 use super::diagnostic::{find_key, find_literal, offset_of, RuleError, SourceFile};
 use super::expr::{Expr, ExprError};
 use super::program::{
-    Command, CommandKind, Compound, Condition, FrameParams, Offset, Op, Param, ParamKind, Policy,
-    Program, Property, Scalar, Step, Vector,
+    Command, CommandKind, Compound, Condition, FrameParams, Offset, OnIntersection, Op, Param,
+    ParamKind, Policy, Program, Property, Scalar, Step, Vector,
 };
 use super::random::stream_key;
 use super::spanned::{with_format, SourceFormat, Spanned};
@@ -616,7 +616,22 @@ pub fn compile(
         Some(ast::PolicyName::Merge) => Policy::Merge {
             tolerance: default_tolerance,
         },
+        Some(ast::PolicyName::Intersect) => Policy::Intersect,
         Some(ast::PolicyName::None) | None => Policy::None,
+    };
+    let on_intersection = match &ast.on_intersection {
+        None => OnIntersection::Skip,
+        Some(o) => match on_intersection(o.value) {
+            OnIntersection::CancelCompound | OnIntersection::CancelRule => {
+                return Err(compiler
+                    .error(
+                        o.span.clone().or_else(|| find_key(&compiler.file.text, "on_intersection")),
+                        "the file's `on_intersection` can be \"skip\" or \"error\"; cancelling belongs to steps in a compound or a rule",
+                    )
+                    .with_help("put `on_intersection = \"cancel_compound\"` on the compound call or its steps, `\"cancel_rule\"` on a rule's steps"));
+            }
+            other => other,
+        },
     };
     let mut expander = Expander {
         c: &compiler,
@@ -629,6 +644,9 @@ pub fn compile(
         uses_graph: false,
         edges_possible: false,
         default_tolerance,
+        rule_instances: Vec::new(),
+        next_rule_instance: 0,
+        may_cancel: false,
     };
     let mut steps: Vec<Step> = Vec::new();
     if let Some(start) = &ast.start {
@@ -647,6 +665,7 @@ pub fn compile(
     }
     expander.expand(&ast.steps, "", &mut steps, None)?;
     let uses_graph = expander.uses_graph;
+    let may_cancel = expander.may_cancel;
     let step_count = expander.next_uid as usize;
     let mut compounds = Vec::with_capacity(expander.compounds.len());
     for (i, compound) in expander.compounds.into_iter().enumerate() {
@@ -665,6 +684,9 @@ pub fn compile(
                     uses_graph: false,
                     edges_possible: true,
                     default_tolerance,
+                    rule_instances: Vec::new(),
+                    next_rule_instance: 0,
+                    may_cancel: false,
                 };
                 check.compile_compound(i, None)?;
                 compounds.push(Compound {
@@ -693,7 +715,18 @@ pub fn compile(
         step_count,
         uses_graph,
         policy,
+        on_intersection,
+        may_cancel,
     })
+}
+
+fn on_intersection(name: ast::OnIntersectionName) -> OnIntersection {
+    match name {
+        ast::OnIntersectionName::Skip => OnIntersection::Skip,
+        ast::OnIntersectionName::CancelCompound => OnIntersection::CancelCompound,
+        ast::OnIntersectionName::CancelRule => OnIntersection::CancelRule,
+        ast::OnIntersectionName::Error => OnIntersection::Error,
+    }
 }
 
 /// Merge tolerance when the file gives none (model units).
@@ -918,6 +951,12 @@ struct Expander<'c, 'a> {
     edges_possible: bool,
     /// The file's `tolerance`, for steps that turn merging on.
     default_tolerance: f64,
+    /// Rule applications being expanded, outermost first (cleared inside
+    /// a compound, whose steps are compiled once for every call).
+    rule_instances: Vec<u32>,
+    next_rule_instance: u32,
+    /// Whether a step may cancel a compound or rule application.
+    may_cancel: bool,
 }
 
 /// Most steps a rule file may unroll to: a guard against `repeat = 1e9`.
@@ -1051,8 +1090,11 @@ impl Expander<'_, '_> {
             ));
         }
         self.rule_stack.push(index);
+        self.rule_instances.push(self.next_rule_instance);
+        self.next_rule_instance += 1;
         let steps = &self.ast.rules.0[index].1.steps;
         let result = self.expand(steps, prefix, out, None);
+        self.rule_instances.pop();
         self.rule_stack.pop();
         result
     }
@@ -1092,9 +1134,11 @@ impl Expander<'_, '_> {
         // Validate the definition's own parameters now (calls merge them).
         compile_frame(c, domain, &def.frame(), &ast::FrameSpec::default())?;
         self.compound_stack.push(index);
+        let outer_rules = std::mem::take(&mut self.rule_instances);
         let mut steps = Vec::new();
         let result = self.expand(&def.steps, &format!("{}/", name.value), &mut steps, None);
         self.compound_stack.pop();
+        self.rule_instances = outer_rules;
         result?;
         if steps.is_empty() {
             return Err(c.error(
@@ -1326,6 +1370,7 @@ impl Expander<'_, '_> {
             None => c.file.name.clone(),
         };
         let policy = self.step_policy(step, &op, &op_key.value)?;
+        let on_intersection = self.step_on_intersection(step, &op)?;
         Ok(Step {
             uid,
             key: stream_key(&format!("step/{path}")),
@@ -1336,7 +1381,52 @@ impl Expander<'_, '_> {
             from,
             op,
             policy,
+            on_intersection,
+            rule_instances: self.rule_instances.clone(),
         })
+    }
+
+    /// A step's own `on_intersection`: G³ commands and compound calls only;
+    /// cancelling needs something to cancel.
+    fn step_on_intersection(
+        &mut self,
+        step: &ast::Step,
+        op: &Op,
+    ) -> Result<Option<OnIntersection>, RuleError> {
+        let Some(name) = &step.on_intersection else {
+            return Ok(None);
+        };
+        let c = self.c;
+        let span = name
+            .span
+            .clone()
+            .or_else(|| find_key(&c.file.text, "on_intersection"));
+        let is_compound = matches!(op, Op::Compound { .. });
+        if !matches!(op, Op::Command(_)) && !is_compound {
+            return Err(c.error(
+                span,
+                "`on_intersection` belongs to G³ commands and compound calls",
+            ));
+        }
+        let value = on_intersection(name.value);
+        let in_compound = !self.compound_stack.is_empty();
+        match value {
+            OnIntersection::CancelCompound if !in_compound && !is_compound => {
+                return Err(c
+                    .error(span, "`cancel_compound` outside a compound command")
+                    .with_help(
+                        "use it on a compound call or on the steps of a `[compound.NAME]`",
+                    ));
+            }
+            OnIntersection::CancelRule if self.rule_instances.is_empty() && !in_compound => {
+                return Err(c.error(span, "`cancel_rule` outside a rule").with_help(
+                    "use it on the steps of a `[rules.NAME]` included with `rule = \"NAME\"`",
+                ));
+            }
+            OnIntersection::CancelCompound | OnIntersection::CancelRule => self.may_cancel = true,
+            OnIntersection::Skip | OnIntersection::Error => {}
+        }
+        Ok(Some(value))
     }
 
     /// A step's own `policy` and `tolerance`; they belong to G³ commands
@@ -1377,6 +1467,7 @@ impl Expander<'_, '_> {
                 tolerance: t.unwrap_or(self.default_tolerance),
             })),
             (Some(ast::PolicyName::None), None) => Ok(Some(Policy::None)),
+            (Some(ast::PolicyName::Intersect), None) => Ok(Some(Policy::Intersect)),
             (_, Some(_)) => Err(c
                 .error(
                     step.tolerance

@@ -38,6 +38,25 @@ pub struct Program {
     pub uses_graph: bool,
     /// The file's default policy for G³ commands.
     pub policy: Policy,
+    /// The file's default reaction to an intersecting product.
+    pub on_intersection: OnIntersection,
+    /// Whether any step may cancel a compound or a rule application, so
+    /// the engine keeps snapshots to roll back to.
+    pub may_cancel: bool,
+}
+
+/// What happens when a product of a command under `policy = "intersect"`
+/// would intersect the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OnIntersection {
+    /// That application is not made (counted in the stats).
+    Skip,
+    /// The whole application of the innermost compound is rolled back.
+    CancelCompound,
+    /// The whole application of the innermost rule is rolled back.
+    CancelRule,
+    /// The run fails.
+    Error,
 }
 
 /// What a G³ command does about primitives that coincide with the model
@@ -49,6 +68,9 @@ pub enum Policy {
     /// Nodes the command made or moved are merged with the nodes within
     /// `tolerance`, and the topology repaired.
     Merge { tolerance: f64 },
+    /// Each application's would-be products are tested against the model
+    /// first; intersecting ones are handled by `on_intersection`.
+    Intersect,
 }
 
 /// A compound command (thesis 003 §3.3): run its steps inside a scope made
@@ -217,6 +239,11 @@ pub struct Step {
     /// The step's own policy (G³ commands and compounds); `None` inherits
     /// the enclosing compound call's, or the file's.
     pub policy: Option<Policy>,
+    /// The step's own reaction to intersections; `None` inherits.
+    pub on_intersection: Option<OnIntersection>,
+    /// The rule applications the step belongs to, outermost first: one
+    /// number per include (and per repeat of it), unique in the program.
+    pub rule_instances: Vec<u32>,
 }
 
 #[derive(Debug, Clone)]

@@ -16,3 +16,18 @@ pub fn program(text: &str) -> Result<Program, RuleError> {
     let ast = parse(&file, SourceFormat::Toml)?;
     compile(&file, SourceFormat::Toml, &ast, &[], Path::new("rules"))
 }
+
+/// Asserts that each rule text fails to compile with a headline that
+/// contains its expected text.
+pub fn assert_rejected(cases: &[(&str, &str)]) {
+    for (text, expected) in cases {
+        let message = match program(text) {
+            Ok(_) => panic!("expected an error for:\n{text}"),
+            Err(e) => e.headline(),
+        };
+        assert!(
+            message.contains(expected),
+            "{message}\n  should contain: {expected}"
+        );
+    }
+}

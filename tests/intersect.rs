@@ -1,0 +1,218 @@
+//! The `intersect` policy (thesis 003 §3.2) through rule files: the
+//! tree-in-box and flags examples, every `on_intersection` reaction, and
+//! rejected input. Narrow-phase cases have fixtures in
+//! `kernel::intersect`.
+
+mod common;
+use common::{assert_rejected, program};
+
+use graftal::grammar::graph::RADIUS;
+use graftal::grammar::{run, RunOptions, RunOutput, StepStats};
+use graftal::kernel::intersect::{self_intersections, self_intersections_with, WireThickness};
+
+fn grow(text: &str) -> RunOutput {
+    let p = program(text).unwrap_or_else(|e| panic!("{}", e.headline()));
+    let options = RunOptions {
+        validate_each_step: true,
+        ..RunOptions::default()
+    };
+    let out = run(&p, &options).unwrap_or_else(|e| panic!("{e}"));
+    out.mesh.validate().unwrap();
+    out
+}
+
+fn step<'a>(out: &'a RunOutput, name: &str) -> &'a StepStats {
+    out.steps
+        .iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("no step {name}"))
+}
+
+fn total_rejected(out: &RunOutput) -> usize {
+    out.steps.iter().map(|s| s.rejected).sum()
+}
+
+#[test]
+fn tree_in_box_stays_in_the_box_and_never_touches_itself() {
+    let out = grow(include_str!("../rules/tree-in-box.toml"));
+    let m = &out.mesh;
+    assert!(m.vert_count() > 5000, "{} nodes", m.vert_count());
+    assert!(
+        total_rejected(&out) > 0,
+        "the box and branches must have blocked growth"
+    );
+    for v in m.vert_ids() {
+        let p = m.position(v);
+        assert!(p.x.abs() <= 1.0 && p.y.abs() <= 1.0, "{p}");
+        assert!((0.0..=2.2).contains(&p.z), "{p}");
+    }
+    let found = self_intersections_with(m, WireThickness::VertLayer(RADIUS));
+    assert!(found.faces.is_empty(), "{:?}", found.faces);
+    assert!(
+        found.edge_faces.is_empty(),
+        "{:?}",
+        &found.edge_faces[..found.edge_faces.len().min(5)]
+    );
+    assert!(
+        found.edges.is_empty(),
+        "{:?}",
+        &found.edges[..found.edges.len().min(5)]
+    );
+}
+
+#[test]
+fn flags_never_cross_and_do_without_the_policy() {
+    let text = include_str!("../rules/flags.toml");
+    let out = grow(text);
+    let flags = step(&out, "flags");
+    assert!(flags.rejected > 0 && flags.applied > 0, "{flags:?}");
+    assert_eq!(flags.applied + flags.rejected, flags.matched);
+    assert!(self_intersections(&out.mesh).is_empty());
+    // The same flags without testing cross each other.
+    let loose = grow(&text.replace("policy = \"intersect\"", "policy = \"none\""));
+    assert_eq!(step(&loose, "flags").applied, flags.matched);
+    assert!(!self_intersections(&loose.mesh).is_empty());
+}
+
+/// A wall (a vertical quad at x = 1) and a node at the origin; steps grow
+/// edges along +x, which reach the wall when longer than 1.
+const WALL: &str = r#"
+[start]
+grid = { segments = [1, 1], size = [2, 2] }
+[[step]]
+name = "stand"
+rotate = { angle = 90, axis = [0, 1, 0] }
+[[step]]
+name = "place"
+translate = { offset = [1, 0, 0] }
+[[step]]
+name = "thin"
+edit_node = { radius = 0.01 }
+[[step]]
+name = "seed"
+vertex = { at = [0, 0, 0], radius = 0.01 }
+"#;
+
+#[test]
+fn skip_leaves_out_only_the_intersecting_application() {
+    let text = format!(
+        "{WALL}[[step]]\nname = \"grow\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\ncreate_edge = {{ heading = [1, 0, 0], length = 1.5 }}\n[[step]]\nname = \"short\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\ncreate_edge = {{ heading = [1, 0, 0], length = 0.5 }}\n"
+    );
+    let out = grow(&text);
+    assert_eq!(step(&out, "grow").rejected, 1);
+    assert_eq!(step(&out, "grow").applied, 0);
+    assert_eq!(step(&out, "short").applied, 1);
+}
+
+#[test]
+fn error_stops_the_run_with_a_located_message() {
+    let text = format!(
+        "{WALL}[[step]]\nname = \"grow\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\non_intersection = \"error\"\ncreate_edge = {{ heading = [1, 0, 0], length = 1.5 }}\n"
+    );
+    let p = program(&text).unwrap();
+    let err = run(&p, &RunOptions::default()).unwrap_err();
+    assert!(
+        err.message
+            .contains("would make a primitive that intersects the model"),
+        "{err}"
+    );
+    assert!(err.location.starts_with("test.toml:"), "{}", err.location);
+}
+
+#[test]
+fn cancel_rule_rolls_the_whole_rule_application_back() {
+    // Each application of `pair` grows a short edge, then a long one that
+    // hits the wall: the short edge is rolled back too.
+    let text = format!(
+        "{WALL}[rules.pair]\nstep = [\n  {{ name = \"short\", select = \"degree == 0\", create_edge = {{ heading = [0, 1, 0], length = 0.2 }} }},\n  {{ name = \"long\", from = \"short\", on = \"verts\", on_intersection = \"cancel_rule\", create_edge = {{ heading = [1, 0, 0], length = 1.5 }} }},\n  {{ name = \"after\", from = \"long\", on = \"verts\", create_edge = {{ heading = [0, 0, 1], length = 0.1 }} }},\n]\n[[step]]\nrule = \"pair\"\n"
+    );
+    let text = format!("policy = \"intersect\"\n{text}");
+    let out = grow(&text);
+    assert_eq!(step(&out, "pair/long").cancelled, 1);
+    // Only the wall and the lone seed node remain.
+    assert_eq!(out.mesh.edge_count(), 4);
+    assert_eq!(out.mesh.vert_count(), 5);
+    // Without the long edge hitting, the rule stands.
+    let fine = text.replace("length = 1.5", "length = 0.5");
+    let out = grow(&fine);
+    assert_eq!(out.mesh.edge_count(), 7);
+}
+
+#[test]
+fn cancel_compound_rolls_back_one_scope_and_keeps_the_others() {
+    // Two seed nodes; the compound grows a stem and then an arm towards the
+    // wall. From the node at x = 0.8 the arm reaches the wall: that scope is
+    // rolled back whole; the node at x = -1.5 keeps stem and arm.
+    let text = r#"
+policy = "intersect"
+[start]
+grid = { segments = [1, 1], size = [2, 2] }
+[[step]]
+name = "stand"
+rotate = { angle = 90, axis = [0, 1, 0] }
+[[step]]
+name = "place"
+translate = { offset = [1, 0, 0] }
+[[step]]
+name = "thin"
+edit_node = { radius = 0.01 }
+[[step]]
+name = "a"
+vertex = { at = [0.8, 0, 0], radius = 0.01 }
+[[step]]
+name = "b"
+vertex = { at = [-1.5, 0, 0], radius = 0.01 }
+[compound.arm]
+on = "verts"
+step = [
+  { name = "stem", create_edge = { heading = [0, 0, 1], length = 0.3 } },
+  { name = "reach", from = "stem", on = "verts", on_intersection = "cancel_compound", create_edge = { heading = [1, 0, 0], length = 0.5 } },
+]
+[[step]]
+name = "arms"
+select = "degree == 0"
+compound = "arm"
+"#;
+    let out = grow(text);
+    let arms = step(&out, "arms");
+    assert_eq!(arms.cancelled, 1);
+    assert_eq!(arms.applied, 1);
+    // The wall's 4 edges and the kept scope's stem and arm.
+    assert_eq!(out.mesh.edge_count(), 6);
+    for v in out.mesh.vert_ids() {
+        let p = out.mesh.position(v);
+        let cancelled_stem = (p.x - 0.8).abs() < 1e-9 && p.z > 0.1;
+        assert!(!cancelled_stem, "the cancelled stem is gone: {p}");
+    }
+}
+
+#[test]
+fn bad_intersection_input_is_rejected_with_a_location() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "on_intersection = \"explode\"\n",
+            "unknown variant `explode`",
+        ),
+        (
+            "on_intersection = \"cancel_rule\"\n",
+            "the file's `on_intersection` can be \"skip\" or \"error\"",
+        ),
+        (
+            "[[step]]\ncreate_edge = {}\non_intersection = \"cancel_compound\"\n",
+            "test.toml:3:19: `cancel_compound` outside a compound command",
+        ),
+        (
+            "[[step]]\ncreate_edge = {}\non_intersection = \"cancel_rule\"\n",
+            "`cancel_rule` outside a rule",
+        ),
+        (
+            "[[step]]\ncube = {}\non_intersection = \"skip\"\n",
+            "`on_intersection` belongs to G³ commands and compound calls",
+        ),
+        (
+            "[[step]]\ncreate_edge = {}\npolicy = \"intersect\"\ntolerance = 0.1\n",
+            "`tolerance` is the distance of `policy = \"merge\"`",
+        ),
+    ];
+    assert_rejected(cases);
+}
