@@ -40,7 +40,7 @@
 //!   `hull(A \ v)` and `B` at a point of `hull(B \ v)` (`v` is a corner, so
 //!   a ray from it exits through the opposite side); the nearer exit lies in
 //!   both. Conversely `hull(A \ v)` does not contain `v`. So the test is
-//!   local to nothing and exact: a pair sharing a vertex that also crosses
+//!   exact and not merely local: a pair sharing a vertex that also crosses
 //!   far away is caught, a pair touching only at `v` is not. If `v` is not a
 //!   corner in the geometric sense (a degenerate triangle with `v` inside an
 //!   edge, or another corner at the same position) the test reports an
@@ -56,6 +56,23 @@
 //! - **three**: two triangles on the same three vertices (duplicate faces,
 //!   or a triangle face repeating part of a larger face, thesis Fig. 3.4 (d))
 //!   overlap: they intersect.
+//!
+//! Contact that is not on shared vertices or edges counts even when it is
+//! only touching: a T-junction (a vertex on another face's edge), a part
+//! standing on a face, coplanar faces meeting along a segment. That is
+//! what a growth test must refuse, and a mesh quality gate should see.
+//!
+//! # Speed
+//!
+//! Most candidate pairs of a mesh are neighbours that share a vertex or an
+//! edge. Before the exact tests, certified floating-point plane tests (the
+//! error bound of Shewchuk's first stage, so a "no" is exact) settle the
+//! common cases: one primitive beside the other's plane; the far parts of
+//! two neighbours on the two sides of a plane through their shared vertex
+//! or edge (flat and smooth surfaces); a far part beyond an edge of the
+//! other triangle. Only what they cannot settle reaches the adaptive
+//! predicates. Exactly coplanar configurations that are not axis-aligned
+//! and not separable that way (rare) cost microseconds per pair.
 //!
 //! # Broad phase
 //!
@@ -244,7 +261,8 @@ pub fn primitives_intersect(a: &Primitive, b: &Primitive, thickness: f64) -> boo
             count += 1;
         }
     }
-    if (thickness.is_nan() || thickness <= 0.0) && quick_miss(a, b, &shared[..count]) {
+    let exact = thickness.is_nan() || thickness <= 0.0;
+    if exact && quick_miss(a, b, &shared[..count]) {
         return false;
     }
     match count {

@@ -409,7 +409,8 @@ pub(crate) fn point_triangle_distance_squared(p: DVec3, t: [DVec3; 3]) -> f64 {
     let ab = b - a;
     let ac = c - a;
     let n = ab.cross(ac);
-    if n.length_squared().is_nan() || n.length_squared() <= 0.0 {
+    let area2 = n.length_squared();
+    if area2.is_nan() || area2 <= 0.0 {
         return point_segment_distance_squared(p, a, b)
             .min(point_segment_distance_squared(p, b, c))
             .min(point_segment_distance_squared(p, c, a));

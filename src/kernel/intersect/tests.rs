@@ -924,8 +924,11 @@ proptest! {
                 if hit {
                     prop_assert!(primitives_intersect(&strip(&a.prim), &strip(&b.prim), h));
                 }
-                // Turning a triangle's corners (with their edge flags) changes nothing.
-                if !a.prim.is_segment() {
+                // Turning a triangle's corners (with their edge flags) changes
+                // nothing. Only checked for the exact tests: with a thickness
+                // the distance is computed in floating point, and a pair at
+                // exactly that distance may round either way by corner order.
+                if !a.prim.is_segment() && h == 0.0 {
                     let p = a.prim.points;
                     let v: Vec<Option<VertId>> = a.prim.verts().collect();
                     let bits = [0, 1, 2].map(|i| a.prim.boundary & (1 << i) != 0);
