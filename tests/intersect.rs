@@ -74,9 +74,8 @@ fn flags_never_cross_and_do_without_the_policy() {
     assert!(!self_intersections(&loose.mesh).is_empty());
 }
 
-/// A wall (a vertical quad at x = 1) and a node at the origin; steps grow
-/// edges along +x, which reach the wall when longer than 1.
-const WALL: &str = r#"
+/// A wall: a vertical quad at x = 1 with thin nodes.
+const WALL_ONLY: &str = r#"
 [start]
 grid = { segments = [1, 1], size = [2, 2] }
 [[step]]
@@ -88,15 +87,24 @@ translate = { offset = [1, 0, 0] }
 [[step]]
 name = "thin"
 edit_node = { radius = 0.01 }
-[[step]]
-name = "seed"
-vertex = { at = [0, 0, 0], radius = 0.01 }
 "#;
+
+/// A seed node for growth tests.
+fn seed(name: &str, x: f64) -> String {
+    format!("[[step]]\nname = \"{name}\"\nvertex = {{ at = [{x}, 0, 0], radius = 0.01 }}\n")
+}
+
+/// The wall and a node at the origin; steps grow edges along +x, which
+/// reach the wall when longer than 1.
+fn wall() -> String {
+    format!("{WALL_ONLY}{}", seed("seed", 0.0))
+}
 
 #[test]
 fn skip_leaves_out_only_the_intersecting_application() {
     let text = format!(
-        "{WALL}[[step]]\nname = \"grow\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\ncreate_edge = {{ heading = [1, 0, 0], length = 1.5 }}\n[[step]]\nname = \"short\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\ncreate_edge = {{ heading = [1, 0, 0], length = 0.5 }}\n"
+        "{}[[step]]\nname = \"grow\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\ncreate_edge = {{ heading = [1, 0, 0], length = 1.5 }}\n[[step]]\nname = \"short\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\ncreate_edge = {{ heading = [1, 0, 0], length = 0.5 }}\n",
+        wall()
     );
     let out = grow(&text);
     assert_eq!(step(&out, "grow").rejected, 1);
@@ -107,7 +115,8 @@ fn skip_leaves_out_only_the_intersecting_application() {
 #[test]
 fn error_stops_the_run_with_a_located_message() {
     let text = format!(
-        "{WALL}[[step]]\nname = \"grow\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\non_intersection = \"error\"\ncreate_edge = {{ heading = [1, 0, 0], length = 1.5 }}\n"
+        "{}[[step]]\nname = \"grow\"\nselect = \"degree == 0\"\npolicy = \"intersect\"\non_intersection = \"error\"\ncreate_edge = {{ heading = [1, 0, 0], length = 1.5 }}\n",
+        wall()
     );
     let p = program(&text).unwrap();
     let err = run(&p, &RunOptions::default()).unwrap_err();
@@ -124,7 +133,8 @@ fn cancel_rule_rolls_the_whole_rule_application_back() {
     // Each application of `pair` grows a short edge, then a long one that
     // hits the wall: the short edge is rolled back too.
     let text = format!(
-        "{WALL}[rules.pair]\nstep = [\n  {{ name = \"short\", select = \"degree == 0\", create_edge = {{ heading = [0, 1, 0], length = 0.2 }} }},\n  {{ name = \"long\", from = \"short\", on = \"verts\", on_intersection = \"cancel_rule\", create_edge = {{ heading = [1, 0, 0], length = 1.5 }} }},\n  {{ name = \"after\", from = \"long\", on = \"verts\", create_edge = {{ heading = [0, 0, 1], length = 0.1 }} }},\n]\n[[step]]\nrule = \"pair\"\n"
+        "{}[rules.pair]\nstep = [\n  {{ name = \"short\", select = \"degree == 0\", create_edge = {{ heading = [0, 1, 0], length = 0.2 }} }},\n  {{ name = \"long\", from = \"short\", on = \"verts\", on_intersection = \"cancel_rule\", create_edge = {{ heading = [1, 0, 0], length = 1.5 }} }},\n  {{ name = \"after\", from = \"long\", on = \"verts\", create_edge = {{ heading = [0, 0, 1], length = 0.1 }} }},\n]\n[[step]]\nrule = \"pair\"\n",
+        wall()
     );
     let text = format!("policy = \"intersect\"\n{text}");
     let out = grow(&text);
@@ -143,25 +153,11 @@ fn cancel_compound_rolls_back_one_scope_and_keeps_the_others() {
     // Two seed nodes; the compound grows a stem and then an arm towards the
     // wall. From the node at x = 0.8 the arm reaches the wall: that scope is
     // rolled back whole; the node at x = -1.5 keeps stem and arm.
-    let text = r#"
-policy = "intersect"
-[start]
-grid = { segments = [1, 1], size = [2, 2] }
-[[step]]
-name = "stand"
-rotate = { angle = 90, axis = [0, 1, 0] }
-[[step]]
-name = "place"
-translate = { offset = [1, 0, 0] }
-[[step]]
-name = "thin"
-edit_node = { radius = 0.01 }
-[[step]]
-name = "a"
-vertex = { at = [0.8, 0, 0], radius = 0.01 }
-[[step]]
-name = "b"
-vertex = { at = [-1.5, 0, 0], radius = 0.01 }
+    let text = format!(
+        "policy = \"intersect\"\n{WALL_ONLY}{}{}{}",
+        seed("a", 0.8),
+        seed("b", -1.5),
+        r#"
 [compound.arm]
 on = "verts"
 step = [
@@ -172,8 +168,9 @@ step = [
 name = "arms"
 select = "degree == 0"
 compound = "arm"
-"#;
-    let out = grow(text);
+"#
+    );
+    let out = grow(&text);
     let arms = step(&out, "arms");
     assert_eq!(arms.cancelled, 1);
     assert_eq!(arms.applied, 1);

@@ -64,6 +64,10 @@ impl Merger {
         made: &mut Selection,
     ) -> Result<usize, OpError> {
         made.normalize();
+        if new.is_empty() {
+            // Nothing made or moved: no grid to build or search.
+            return Ok(0);
+        }
         let grid = match &mut self.grid {
             Some(grid) if tolerance <= self.cell => grid,
             _ => {
