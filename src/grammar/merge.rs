@@ -88,6 +88,7 @@ impl Merger {
             let glued = edge_groups(mesh, &clusters, &made.edges);
             let result = weld_clusters(mesh, &clusters)?;
             settle_glued(mesh, glued)?;
+            drop_flat_faces(mesh, &clusters, tolerance)?;
             made.faces.extend(result.remade);
             made.verts.extend(clusters.iter().map(|c| c.keep));
             result.merged
@@ -120,6 +121,33 @@ fn average_nodes(mesh: &mut Mesh, clusters: &[Cluster]) {
             mesh.refresh_normal(f);
         }
     }
+}
+
+/// Kills the faces around the survivors that merging left flat: all their
+/// nodes within `tolerance` of one line (zero area, or collinear nodes, say
+/// a triangle whose apex merged onto its base's line). A face is flat when
+/// its area is at most `tolerance` × half its perimeter — its width is
+/// below what the merge treats as one point. Its edges stay.
+fn drop_flat_faces(mesh: &mut Mesh, clusters: &[Cluster], tolerance: f64) -> Result<(), OpError> {
+    let mut faces: Vec<_> = clusters
+        .iter()
+        .filter(|c| mesh.contains_vert(c.keep))
+        .flat_map(|c| mesh.vert_faces(c.keep))
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    for f in faces {
+        let ring = mesh.face_positions(f);
+        let perimeter: f64 = (0..ring.len())
+            .map(|i| ring[i].distance(ring[(i + 1) % ring.len()]))
+            .sum();
+        let area = mesh.face_area(f);
+        // `!(a > b)` so a NaN area counts as flat.
+        if !(area > tolerance.max(f64::EPSILON) * 0.5 * perimeter) {
+            mesh.kill_face(f)?;
+        }
+    }
+    Ok(())
 }
 
 /// Edges that will become one once the clusters are glued: their ends
@@ -219,5 +247,47 @@ fn settle_glued(mesh: &mut Mesh, groups: Vec<GluedEdges>) -> Result<(), OpError>
 impl Default for Merger {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A triangle A B C and a lone node at `d`; C is moved onto `d` and
+    /// merged as an `edit_node` with the merge policy would.
+    fn move_apex_onto(d: DVec3) -> Mesh {
+        let mut mesh = Mesh::new();
+        graph::ensure_layers(&mut mesh);
+        let a = mesh.make_vert(DVec3::ZERO);
+        let b = mesh.make_vert(DVec3::new(2.0, 0.0, 0.0));
+        let c = mesh.make_vert(DVec3::new(1.0, 1.0, 0.0));
+        mesh.make_face(&[a, b, c]).unwrap();
+        mesh.make_vert(d);
+        mesh.set_position(c, d);
+        let mut made = Selection::default();
+        made.verts.push(c);
+        let merged = Merger::new()
+            .merge(&mut mesh, &[c], 1e-6, &mut made)
+            .unwrap();
+        assert_eq!(merged, 1);
+        mesh.validate().unwrap();
+        mesh
+    }
+
+    #[test]
+    fn a_face_merged_flat_is_removed_and_its_edges_stay() {
+        let mesh = move_apex_onto(DVec3::new(1.0, 0.0, 0.0));
+        assert_eq!(
+            [mesh.vert_count(), mesh.edge_count(), mesh.face_count()],
+            [3, 3, 0]
+        );
+    }
+
+    #[test]
+    fn a_thin_face_that_is_not_flat_stays() {
+        let mesh = move_apex_onto(DVec3::new(1.0, 1e-3, 0.0));
+        assert_eq!(mesh.face_count(), 1);
+        assert!(mesh.face_ids().all(|f| mesh.face_area(f) > 0.0));
     }
 }
