@@ -142,8 +142,9 @@ fn drop_flat_faces(mesh: &mut Mesh, clusters: &[Cluster], tolerance: f64) -> Res
             .map(|i| ring[i].distance(ring[(i + 1) % ring.len()]))
             .sum();
         let area = mesh.face_area(f);
-        // `!(a > b)` so a NaN area counts as flat.
-        if !(area > tolerance.max(f64::EPSILON) * 0.5 * perimeter) {
+        let width_area = tolerance.max(f64::EPSILON) * 0.5 * perimeter;
+        // A NaN area counts as flat.
+        if area.is_nan() || area <= width_area {
             mesh.kill_face(f)?;
         }
     }
