@@ -4,7 +4,10 @@
 //! not be written); 2 usage error, bad rule file or bad input mesh.
 //! Outputs are written atomically: a temporary file, then a rename.
 
+mod batch;
+mod manifest;
 mod stats;
+mod verify;
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -12,7 +15,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::grammar::{self, RunErrorKind, RunOptions};
+use crate::grammar;
 use crate::io::{self, bridge};
 use crate::rules::{self, Override, RuleError};
 
@@ -20,6 +23,10 @@ use crate::rules::{self, Override, RuleError};
 pub const EXIT_RUNTIME: u8 = 1;
 /// Exit code when the model outgrows `--max-primitives` (runaway growth).
 pub const EXIT_TOO_LARGE: u8 = 3;
+/// Exit code when a variant runs past `--timeout`.
+pub const EXIT_TIMEOUT: u8 = 4;
+/// Exit code when a variant evaluates more than `--max-evaluations`.
+pub const EXIT_EVALUATIONS: u8 = 5;
 /// Exit status for usage errors, bad rule files and bad input meshes.
 pub const EXIT_INPUT: u8 = 2;
 
@@ -36,30 +43,76 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Run a rule file and write the mesh (format from OUT's extension).
+    /// Run a rule file and write the mesh (format from OUT's extension),
+    /// or a batch of variants (`--seeds`, `--grid`).
     Run {
         /// Rule file (.toml or .ron).
         rules: PathBuf,
         /// Output mesh: .obj, .gltf, .glb, .stl (binary), .ply (binary).
-        /// Defaults to RULES' file stem with .obj in the current directory.
+        /// A template: `{name}`, `{seed}`, `{index}` and parameter names
+        /// are filled in per variant (`{seed:04}` zero-pads). Defaults to
+        /// `{name}.obj`; in a batch `{name}-{seed}.obj` (with a grid
+        /// `{name}-{index}.obj`).
         #[arg(short, long, value_name = "OUT")]
-        output: Option<PathBuf>,
+        output: Option<String>,
         /// Seed for every random draw (default: the file's `seed`, else 0).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "seeds")]
         seed: Option<u64>,
+        /// A batch over seeds: `0..1000` (end excluded), `0..=999`, `1,5,9`
+        /// or a mix (`0..10,100`).
+        #[arg(long, value_name = "RANGE", value_parser = batch::SeedSet::parse)]
+        seeds: Option<batch::SeedSet>,
         /// Override a parameter: `--set name=value` (a number or expression).
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
         overrides: Vec<Override>,
-        /// Write run statistics as JSON to FILE, or `-` for standard output.
+        /// A parameter grid axis: `--grid name=v1,v2,v3`; several axes and
+        /// `--seeds` make a cartesian product (first axis slowest, seeds
+        /// fastest).
+        #[arg(long = "grid", value_name = "NAME=V1,V2,...", value_parser = batch::GridAxis::parse)]
+        grid: Vec<batch::GridAxis>,
+        /// Variants run at once (default: every core). Never changes a byte.
+        #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
+        jobs: Option<u64>,
+        /// Run only shard I of N (0-based: variants whose index is I mod N)
+        /// and write a shard manifest for `graftal manifest merge`.
+        #[arg(long, value_name = "I/N", value_parser = batch::Shard::parse)]
+        shard: Option<batch::Shard>,
+        /// Batch manifest path (default: `manifest.json` in the output
+        /// template's directory; `manifest.shard-I-of-N.json` for a shard).
         #[arg(long, value_name = "FILE")]
-        stats: Option<PathBuf>,
-        /// Include wall-clock times in the stats (makes them differ run to run).
+        manifest: Option<PathBuf>,
+        /// Write run statistics as JSON to FILE, or `-` for standard output.
+        /// In a batch: `-` streams NDJSON (one line per variant, in index
+        /// order), a path with `{...}` fields writes one file per variant,
+        /// any other path gets the NDJSON.
+        #[arg(long, value_name = "FILE")]
+        stats: Option<String>,
+        /// Include wall-clock times in the stats and manifest (makes them
+        /// differ run to run).
         #[arg(long)]
         timings: bool,
         /// Stop (exit code 3, no output) when the model would exceed this
         /// many primitives (vertices + edges + faces).
         #[arg(long, visible_alias = "max-elements", default_value_t = grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
         max_primitives: usize,
+        /// Stop (exit code 5, no output) after this many evaluations of
+        /// conditions and per-primitive parameters.
+        #[arg(long, default_value_t = grammar::DEFAULT_MAX_EVALUATIONS, value_name = "N")]
+        max_evaluations: u64,
+        /// Stop a variant (exit code 4, no output) after SECONDS of wall
+        /// clock.
+        #[arg(long, value_name = "SECONDS", value_parser = parse_timeout)]
+        timeout: Option<f64>,
+        /// Stop starting variants after the first failure.
+        #[arg(long)]
+        fail_fast: bool,
+        /// No progress bar, no summary, no "wrote" line (errors still go to
+        /// standard error).
+        #[arg(short, long)]
+        quiet: bool,
+        /// Print a machine-readable summary of the batch on standard output.
+        #[arg(long)]
+        json: bool,
         /// Text-format variants: write STL and PLY as ASCII.
         #[arg(long)]
         ascii: bool,
@@ -80,6 +133,42 @@ pub enum Command {
         #[arg(long, default_value_t = stats::CLOSE_TOLERANCE, value_parser = parse_tolerance)]
         tolerance: f64,
     },
+    /// Regenerate rule files and compare with stored goldens (stats JSON,
+    /// and OBJ meshes where present); exit 1 on a difference.
+    Verify {
+        /// Directory of goldens: `<stem>.json` (and optionally `<stem>.obj`)
+        /// per rule file, `<stem>-<seed>.*` with `--seeds`.
+        #[arg(long, value_name = "DIR")]
+        golden: PathBuf,
+        /// Rule files to regenerate.
+        #[arg(required = true)]
+        rules: Vec<PathBuf>,
+        /// Verify these seeds of each file (default: the file's seed).
+        #[arg(long, value_name = "RANGE", value_parser = batch::SeedSet::parse)]
+        seeds: Option<batch::SeedSet>,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+        /// Absolute tolerance for floats.
+        #[arg(long, default_value_t = 0.0, value_parser = parse_tolerance)]
+        abs_tol: f64,
+        /// Relative tolerance for floats.
+        #[arg(long, default_value_t = 0.0, value_parser = parse_tolerance)]
+        rel_tol: f64,
+        /// Rewrite the goldens with the current output instead of comparing.
+        #[arg(long)]
+        bless: bool,
+        /// With --bless: write only the stats goldens, no OBJ meshes.
+        #[arg(long, requires = "bless")]
+        stats_only: bool,
+        /// No success line.
+        #[arg(short, long)]
+        quiet: bool,
+    },
+    /// Batch manifests: `graftal manifest merge SHARD... -o OUT`.
+    Manifest {
+        #[command(subcommand)]
+        action: ManifestAction,
+    },
     /// Convert a mesh between formats (by extension).
     Convert {
         input: PathBuf,
@@ -87,6 +176,20 @@ pub enum Command {
         /// Write STL and PLY as ASCII.
         #[arg(long)]
         ascii: bool,
+    },
+}
+
+#[derive(Subcommand, Debug)]
+pub enum ManifestAction {
+    /// Combine the shard manifests of one batch (`run --shard i/n`) into
+    /// the manifest the unsharded batch writes, byte for byte.
+    Merge {
+        /// Every shard's manifest, in any order.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// The merged manifest (`-` or omitted: standard output).
+        #[arg(short, long, value_name = "FILE")]
+        output: Option<PathBuf>,
     },
 }
 
@@ -117,8 +220,10 @@ pub enum Failure {
     Rule(Box<RuleError>),
     Input(String),
     Runtime(String),
-    /// Runaway growth: the model outgrew `--max-primitives`.
-    TooLarge(String),
+    /// A run stopped with its own exit code (a limit, or a failed step).
+    Limit(u8, String),
+    /// Variants of a batch failed; the code is the first failure's.
+    Batch(u8, String),
 }
 
 impl Failure {
@@ -126,7 +231,7 @@ impl Failure {
         match self {
             Failure::Rule(_) | Failure::Input(_) => EXIT_INPUT,
             Failure::Runtime(_) => EXIT_RUNTIME,
-            Failure::TooLarge(_) => EXIT_TOO_LARGE,
+            Failure::Limit(code, _) | Failure::Batch(code, _) => *code,
         }
     }
 
@@ -150,7 +255,10 @@ impl Failure {
                     let _ = write!(err, "{rendered}");
                 }
             }
-            Failure::Input(m) | Failure::Runtime(m) | Failure::TooLarge(m) => {
+            Failure::Input(m)
+            | Failure::Runtime(m)
+            | Failure::Limit(_, m)
+            | Failure::Batch(_, m) => {
                 let _ = writeln!(err, "error: {m}");
             }
         }
@@ -189,52 +297,67 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             rules,
             output,
             seed,
+            seeds,
             overrides,
+            grid,
+            jobs,
+            shard,
+            manifest,
             stats,
             timings,
             max_primitives,
+            max_evaluations,
+            timeout,
+            fail_fast,
+            quiet,
+            json,
             ascii,
+        } => batch::run(batch::RunArgs {
+            rules,
+            output,
+            seed,
+            seeds,
+            overrides,
+            grid,
+            jobs: jobs.map(|j| j as usize),
+            shard,
+            manifest,
+            stats,
+            timings,
+            max_primitives,
+            max_evaluations,
+            timeout,
+            fail_fast,
+            quiet,
+            json,
+            ascii,
+        }),
+        Command::Verify {
+            golden,
+            rules,
+            seeds,
+            overrides,
+            abs_tol,
+            rel_tol,
+            bless,
+            stats_only,
+            quiet,
+        } => verify::verify(verify::VerifyArgs {
+            golden,
+            rules,
+            seeds,
+            overrides,
+            abs_tol,
+            rel_tol,
+            bless,
+            stats_only,
+            quiet,
+        }),
+        Command::Manifest {
+            action: ManifestAction::Merge { shards, output },
         } => {
-            let output = output.unwrap_or_else(|| {
-                let stem = rules
-                    .file_stem()
-                    .map_or_else(|| "out".into(), |s| s.to_os_string());
-                PathBuf::from(stem).with_extension("obj")
-            });
-            // Check the output format before doing any work.
-            let format = output_format(&output, ascii)?;
-            let program = rules::compile_file(&rules, &overrides)?;
-            let options = RunOptions {
-                seed,
-                max_elements: max_primitives,
-                ..RunOptions::default()
-            };
-            let result = grammar::run(&program, &options).map_err(|e| match e.kind {
-                RunErrorKind::TooLarge => Failure::TooLarge(e.to_string()),
-                RunErrorKind::Failed => Failure::Runtime(e.to_string()),
-            })?;
-            let indexed = bridge::mesh_to_indexed(&result.mesh);
-            write_output(&output, format, &indexed)?;
-            let report = result.mesh.report();
-            if let Some(stats_path) = stats {
-                let gates = stats::gates(&result.mesh, stats::CLOSE_TOLERANCE);
-                let json = stats::run_stats(&program, &result, &report, &gates, timings);
-                if stats_path.as_os_str() == "-" {
-                    println!("{json}");
-                } else {
-                    io::atomic::write_atomic(&stats_path, format!("{json}\n").as_bytes()).map_err(
-                        |e| Failure::Runtime(format!("cannot write {}: {e}", stats_path.display())),
-                    )?;
-                }
-            }
-            eprintln!(
-                "wrote {} ({} vertices, {} faces, seed {})",
-                output.display(),
-                report.verts,
-                report.faces,
-                result.seed
-            );
-            Ok(())
+            let merged = manifest::merge(&shards)?;
+            manifest::write(output.as_deref().unwrap_or(Path::new("-")), &merged)
         }
         Command::Check { rules, overrides } => {
             let program = rules::compile_file(&rules, &overrides)?;
@@ -272,6 +395,18 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let indexed = io::read_mesh(&input).map_err(|e| Failure::Input(e.to_string()))?;
             write_output(&output, format, &indexed)
         }
+    }
+}
+
+/// Seconds for `--timeout`: finite and positive.
+fn parse_timeout(text: &str) -> Result<f64, String> {
+    let value: f64 = text
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number of seconds"))?;
+    if value.is_finite() && value > 0.0 && value < 1e9 {
+        Ok(value)
+    } else {
+        Err(format!("must be a positive number of seconds, got {text}"))
     }
 }
 

@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use crate::grammar::RunOutput;
+use crate::grammar::{RunOutput, StepStats};
 use crate::io::bridge::ImportReport;
 use crate::kernel::intersect::{close_vertices, self_intersections};
 use crate::kernel::{Mesh, MeshReport};
@@ -35,7 +35,7 @@ pub fn gates(mesh: &Mesh, close_tolerance: f64) -> Gates {
 }
 
 #[derive(Serialize)]
-struct MeshJson {
+pub struct MeshJson {
     vertices: usize,
     edges: usize,
     faces: usize,
@@ -83,75 +83,91 @@ fn mesh_json(r: &MeshReport, g: &Gates) -> MeshJson {
     }
 }
 
-#[derive(Serialize)]
-struct StepJson<'a> {
-    name: &'a str,
-    op: &'a str,
-    runs: usize,
-    candidates: usize,
-    matched: usize,
-    applied: usize,
-    skipped_by_probability: usize,
-    shared: usize,
-    merged: usize,
-    rejected_by_intersection: usize,
-    cancelled: usize,
-    created_vertices: usize,
-    created_edges: usize,
-    created_faces: usize,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    time_ms: Option<f64>,
+/// One step's statistics, as the stats document and the batch manifest
+/// write them (and `manifest merge` reads them back).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct StepJson {
+    pub name: String,
+    pub op: String,
+    pub runs: usize,
+    pub candidates: usize,
+    pub matched: usize,
+    pub applied: usize,
+    pub skipped_by_probability: usize,
+    pub shared: usize,
+    pub merged: usize,
+    pub rejected_by_intersection: usize,
+    pub cancelled: usize,
+    pub created_vertices: usize,
+    pub created_edges: usize,
+    pub created_faces: usize,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_ms: Option<f64>,
 }
 
+/// The steps of a run in program order; times only if `timings`.
+pub fn steps_json(steps: &[StepStats], timings: bool) -> Vec<StepJson> {
+    steps
+        .iter()
+        .map(|s| StepJson {
+            name: s.name.clone(),
+            op: s.op.to_string(),
+            runs: s.runs,
+            candidates: s.candidates,
+            matched: s.matched,
+            applied: s.applied,
+            skipped_by_probability: s.skipped,
+            shared: s.shared,
+            merged: s.merged,
+            rejected_by_intersection: s.rejected,
+            cancelled: s.cancelled,
+            created_vertices: s.created.verts,
+            created_edges: s.created.edges,
+            created_faces: s.created.faces,
+            time_ms: timings.then_some(s.elapsed.as_secs_f64() * 1e3),
+        })
+        .collect()
+}
+
+/// The `--stats` document of a run.
 #[derive(Serialize)]
-struct RunJson<'a> {
+pub struct RunJson<'a> {
     graftal_version: &'a str,
     rules: &'a str,
     rule_hash: String,
     seed: u64,
     params: Vec<(&'a str, f64)>,
     mesh: MeshJson,
-    steps: Vec<StepJson<'a>>,
+    steps: Vec<StepJson>,
 }
 
-/// The `--stats` document of a run.
-pub fn run_stats(
-    program: &Program,
-    run: &RunOutput,
+/// A batch's NDJSON stats line: which variant, then its stats document.
+#[derive(Serialize)]
+pub struct VariantLine<'a> {
+    pub index: usize,
+    pub output: &'a str,
+    pub sha256: &'a str,
+    #[serde(flatten)]
+    pub stats: RunJson<'a>,
+}
+
+/// The `--stats` document of a run, to serialize.
+pub fn run_stats_doc<'a>(
+    program: &'a Program,
+    run: &'a RunOutput,
     report: &MeshReport,
     gates: &Gates,
     timings: bool,
-) -> String {
-    let doc = RunJson {
+) -> RunJson<'a> {
+    RunJson {
         graftal_version: env!("CARGO_PKG_VERSION"),
         rules: &program.file,
         rule_hash: format!("{:016x}", program.rule_hash),
         seed: run.seed,
         params: run.params.iter().map(|(n, v)| (n.as_str(), *v)).collect(),
         mesh: mesh_json(report, gates),
-        steps: run
-            .steps
-            .iter()
-            .map(|s| StepJson {
-                name: &s.name,
-                op: s.op,
-                runs: s.runs,
-                candidates: s.candidates,
-                matched: s.matched,
-                applied: s.applied,
-                skipped_by_probability: s.skipped,
-                shared: s.shared,
-                merged: s.merged,
-                rejected_by_intersection: s.rejected,
-                cancelled: s.cancelled,
-                created_vertices: s.created.verts,
-                created_edges: s.created.edges,
-                created_faces: s.created.faces,
-                time_ms: timings.then_some(s.elapsed.as_secs_f64() * 1e3),
-            })
-            .collect(),
-    };
-    serde_json::to_string_pretty(&doc).expect("stats serialize")
+        steps: steps_json(&run.steps, timings),
+    }
 }
 
 #[derive(Serialize)]

@@ -21,6 +21,6 @@ mod run;
 pub mod scope;
 
 pub use run::{
-    run, CreatedCounts, RunError, RunErrorKind, RunOptions, RunOutput, StepStats,
-    DEFAULT_MAX_ELEMENTS,
+    parameter_values, run, CreatedCounts, RunError, RunErrorKind, RunOptions, RunOutput, StepStats,
+    DEFAULT_MAX_ELEMENTS, DEFAULT_MAX_EVALUATIONS,
 };

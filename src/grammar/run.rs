@@ -43,7 +43,17 @@ pub struct RunOptions {
     /// Testing hook: check every kernel invariant after every step.
     #[doc(hidden)]
     pub validate_each_step: bool,
+    /// Stop with [`RunErrorKind::Timeout`] once this instant has passed
+    /// (checked between steps and before each command applies).
+    pub deadline: Option<Instant>,
+    /// Stop with [`RunErrorKind::EvaluationLimit`] after this many
+    /// evaluations of conditions and per-primitive parameters: the bound
+    /// on expression work, deterministic unlike a timeout.
+    pub max_evaluations: u64,
 }
+
+/// Default `--max-evaluations`.
+pub const DEFAULT_MAX_EVALUATIONS: u64 = 10_000_000_000;
 
 /// Default `--max-primitives`.
 pub const DEFAULT_MAX_ELEMENTS: usize = 50_000_000;
@@ -55,6 +65,8 @@ impl Default for RunOptions {
             max_elements: DEFAULT_MAX_ELEMENTS,
             shuffle_visits: None,
             validate_each_step: false,
+            deadline: None,
+            max_evaluations: DEFAULT_MAX_EVALUATIONS,
         }
     }
 }
@@ -117,6 +129,10 @@ pub enum RunErrorKind {
     Failed,
     /// The model outgrew `max_elements`.
     TooLarge,
+    /// The run passed its deadline.
+    Timeout,
+    /// The run evaluated more expressions than `max_evaluations`.
+    EvaluationLimit,
 }
 
 /// A failure while running: which step, where it is written, and why.
@@ -133,6 +149,10 @@ struct Runner<'p> {
     program: &'p Program,
     seed: u64,
     max_elements: usize,
+    deadline: Option<Instant>,
+    max_evaluations: u64,
+    /// Condition and parameter evaluations so far.
+    evaluations: u64,
     shuffle: Option<u64>,
     validate_each_step: bool,
     /// Parameter values, then property values of the current element.
@@ -158,24 +178,7 @@ struct Runner<'p> {
 
 /// Runs the program and returns the mesh with per-step statistics.
 pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunError> {
-    let seed = options.seed.unwrap_or(program.default_seed);
-    let mut runner = Runner {
-        program,
-        seed,
-        max_elements: options.max_elements,
-        shuffle: options.shuffle_visits,
-        validate_each_step: options.validate_each_step,
-        slots: vec![0.0; program.param_names.len()],
-        created: vec![Selection::new(); program.step_count],
-        stats: vec![None; program.step_count],
-        scopes: Vec::new(),
-        calls: Vec::new(),
-        applied: FxHashMap::default(),
-        policies: vec![program.policy],
-        reactions: vec![program.on_intersection],
-        merger: Merger::new(),
-        guard: Guard::new(),
-    };
+    let mut runner = Runner::new(program, options);
     runner.evaluate_params()?;
     let mut mesh = Mesh::new();
     if program.uses_graph {
@@ -184,18 +187,62 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
     runner
         .run_steps(&mut mesh, &program.steps, true)
         .map_err(Stop::into_error)?;
-    let params = program
-        .param_names
-        .iter()
-        .enumerate()
-        .map(|(i, n)| (n.clone(), runner.slots[i]))
-        .collect();
+    let params = runner.param_values();
     Ok(RunOutput {
         mesh,
-        seed,
+        seed: runner.seed,
         params,
         steps: runner.stats.into_iter().flatten().collect(),
     })
+}
+
+/// The parameter values a run with `seed` (the program's default when
+/// `None`) would use, sorted by name, without running anything.
+pub fn parameter_values(
+    program: &Program,
+    seed: Option<u64>,
+) -> Result<Vec<(String, f64)>, RunError> {
+    let options = RunOptions {
+        seed,
+        ..RunOptions::default()
+    };
+    let mut runner = Runner::new(program, &options);
+    runner.evaluate_params()?;
+    Ok(runner.param_values())
+}
+
+impl<'p> Runner<'p> {
+    fn new(program: &'p Program, options: &RunOptions) -> Self {
+        Runner {
+            program,
+            seed: options.seed.unwrap_or(program.default_seed),
+            max_elements: options.max_elements,
+            deadline: options.deadline,
+            max_evaluations: options.max_evaluations,
+            evaluations: 0,
+            shuffle: options.shuffle_visits,
+            validate_each_step: options.validate_each_step,
+            slots: vec![0.0; program.param_names.len()],
+            created: vec![Selection::new(); program.step_count],
+            stats: vec![None; program.step_count],
+            scopes: Vec::new(),
+            calls: Vec::new(),
+            applied: FxHashMap::default(),
+            policies: vec![program.policy],
+            reactions: vec![program.on_intersection],
+            merger: Merger::new(),
+            guard: Guard::new(),
+        }
+    }
+
+    fn param_values(&self) -> Vec<(String, f64)> {
+        self.program
+            .param_names
+            .iter()
+            .zip(&self.slots)
+            .map(|(n, &v)| (n.clone(), v))
+            .collect()
+    }
 }
 
 /// Why running stopped early: a failure, or an intersection that cancels
@@ -504,7 +551,26 @@ impl Runner<'_> {
         }
     }
 
+    /// The run's bounds: the primitive count (with `coming` more on the
+    /// way), the evaluation budget and the deadline.
     fn check_size(&self, mesh: &Mesh, step: &Step, coming: usize) -> Result<(), RunError> {
+        if self.evaluations > self.max_evaluations {
+            return Err(step_error(
+                step,
+                RunErrorKind::EvaluationLimit,
+                format!(
+                    "{} expression evaluations, over the limit of {}; raise it with --max-evaluations if the work is intended",
+                    self.evaluations, self.max_evaluations
+                ),
+            ));
+        }
+        if self.deadline.is_some_and(|d| Instant::now() > d) {
+            return Err(step_error(
+                step,
+                RunErrorKind::Timeout,
+                "the run passed its time limit (--timeout)".to_string(),
+            ));
+        }
         let total = mesh.vert_count() + mesh.edge_count() + mesh.face_count();
         if total.saturating_add(coming) > self.max_elements {
             let message = if coming == 0 {
@@ -555,6 +621,7 @@ impl Runner<'_> {
             values: [0.0; PROPERTY_SLOTS],
             known: 0,
         };
+        self.evaluations += 1;
         c.expr.eval_with(&mut source)
     }
 

@@ -1,0 +1,976 @@
+//! `graftal run`: one variant or a batch of them.
+//!
+//! A batch is the cartesian product of `--grid` values (first axis
+//! slowest) with `--seeds` (fastest); variant `index` counts through it.
+//! Everything a variant writes depends only on its rule file, overrides and
+//! seed — never on `-j`, on scheduling or on which other variants run — so
+//! workers take variants in any order, and whatever is reported in order
+//! (NDJSON stats, the manifest) is put back in index order first.
+
+use std::collections::BTreeMap;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use sha2::{Digest, Sha256};
+
+use super::manifest::{
+    self, BatchSpec, Counts, ErrorEntry, GridSpec, Manifest, ShardSpec, Status, Summary,
+    VariantEntry,
+};
+use super::stats::{self, steps_json};
+use super::{output_format, Failure, EXIT_EVALUATIONS, EXIT_RUNTIME, EXIT_TIMEOUT, EXIT_TOO_LARGE};
+use crate::grammar::{self, RunErrorKind, RunOptions};
+use crate::io::{self, bridge};
+use crate::rules::{self, Override, Program};
+
+/// More variants than this in one batch is surely a typo'd range.
+pub const MAX_VARIANTS: u64 = 10_000_000;
+
+/// `--seeds`: comma-separated items, each `N`, `A..B` (B excluded) or
+/// `A..=B`.
+#[derive(Clone, Debug)]
+pub struct SeedSet {
+    /// Normalized text (what the manifest records).
+    pub text: String,
+    pub seeds: Vec<u64>,
+}
+
+impl SeedSet {
+    pub fn parse(text: &str) -> Result<SeedSet, String> {
+        let number = |s: &str| -> Result<u64, String> {
+            s.trim().parse::<u64>().map_err(|_| {
+                format!(
+                    "`{}` is not a seed (a whole number from 0 to 2^64 - 1)",
+                    s.trim()
+                )
+            })
+        };
+        let mut seeds = Vec::new();
+        let mut items = Vec::new();
+        for item in text.split(',') {
+            let item = item.trim();
+            if item.is_empty() {
+                return Err(format!(
+                    "`{text}`: empty item (expected N, A..B or A..=B, comma-separated)"
+                ));
+            }
+            let (start, end) = if let Some((a, b)) = item.split_once("..=") {
+                (
+                    number(a)?,
+                    number(b)?.checked_add(1).ok_or("range end too large")?,
+                )
+            } else if let Some((a, b)) = item.split_once("..") {
+                (number(a)?, number(b)?)
+            } else {
+                let n = number(item)?;
+                (n, n + 1)
+            };
+            if start >= end {
+                return Err(format!("the range `{item}` is empty"));
+            }
+            if (seeds.len() as u64).saturating_add(end - start) > MAX_VARIANTS {
+                return Err(format!(
+                    "`{text}` names more than {MAX_VARIANTS} seeds; split the batch"
+                ));
+            }
+            seeds.extend(start..end);
+            items.push(item.replace(' ', ""));
+        }
+        let mut sorted = seeds.clone();
+        sorted.sort_unstable();
+        if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
+            return Err(format!("seed {} is listed twice in `{text}`", w[0]));
+        }
+        Ok(SeedSet {
+            text: items.join(","),
+            seeds,
+        })
+    }
+}
+
+/// `--grid name=v1,v2,…`: one axis of the parameter grid.
+#[derive(Clone, Debug)]
+pub struct GridAxis {
+    pub name: String,
+    pub values: Vec<String>,
+}
+
+impl GridAxis {
+    pub fn parse(text: &str) -> Result<GridAxis, String> {
+        let (name, values) = text
+            .split_once('=')
+            .ok_or_else(|| format!("`{text}` is not of the form name=v1,v2,..."))?;
+        let name = name.trim();
+        let first = name.chars().next();
+        if !first.is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        {
+            return Err(format!("`{name}` is not a parameter name"));
+        }
+        let values: Vec<String> = values.split(',').map(|v| v.trim().to_string()).collect();
+        if values.iter().any(String::is_empty) {
+            return Err(format!("`{text}`: empty value in the list"));
+        }
+        Ok(GridAxis {
+            name: name.to_string(),
+            values,
+        })
+    }
+}
+
+/// `--shard i/n`: the variants whose index is `i` modulo `n` (0-based).
+#[derive(Clone, Copy, Debug)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let (i, n) = text
+            .split_once('/')
+            .ok_or_else(|| format!("`{text}` is not of the form i/n (e.g. 0/4)"))?;
+        let parse = |s: &str| {
+            s.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("`{text}`: `{s}` is not a whole number"))
+        };
+        let (index, count) = (parse(i)?, parse(n)?);
+        if count == 0 {
+            return Err(format!("`{text}`: the shard count must be at least 1"));
+        }
+        if index >= count {
+            return Err(format!(
+                "`{text}`: shards are numbered from 0 to {} (0-based)",
+                count - 1
+            ));
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+/// An output path template: literal text and `{field}` or `{field:0N}`
+/// (zero-padded to N digits; seeds and indices only); `{{` and `}}` are
+/// literal braces.
+#[derive(Clone, Debug)]
+pub struct Template {
+    text: String,
+    pieces: Vec<Piece>,
+}
+
+#[derive(Clone, Debug)]
+enum Piece {
+    Text(String),
+    Field { name: String, width: Option<usize> },
+}
+
+/// A value a template field takes.
+enum FieldValue<'a> {
+    Int(u64),
+    Float(f64),
+    Text(&'a str),
+}
+
+impl Template {
+    pub fn parse(text: &str) -> Result<Template, String> {
+        let mut pieces = Vec::new();
+        let mut literal = String::new();
+        let mut chars = text.chars().peekable();
+        while let Some(c) = chars.next() {
+            match c {
+                '{' if chars.peek() == Some(&'{') => {
+                    chars.next();
+                    literal.push('{');
+                }
+                '}' if chars.peek() == Some(&'}') => {
+                    chars.next();
+                    literal.push('}');
+                }
+                '{' => {
+                    let mut spec = String::new();
+                    loop {
+                        match chars.next() {
+                            Some('}') => break,
+                            Some(c) => spec.push(c),
+                            None => return Err(format!("`{text}`: `{{` without a closing `}}`")),
+                        }
+                    }
+                    let (name, width) = match spec.split_once(':') {
+                        None => (spec.as_str(), None),
+                        Some((name, w)) => {
+                            let digits = w.strip_prefix('0').unwrap_or(w);
+                            let width = digits.parse::<usize>().ok().filter(|&w| w <= 20);
+                            match width {
+                                Some(width) if w.starts_with('0') => (name, Some(width)),
+                                _ => {
+                                    return Err(format!(
+                                        "`{text}`: `{{{spec}}}`: the only format is `:0N`, zero-padding to N digits (N up to 20)"
+                                    ))
+                                }
+                            }
+                        }
+                    };
+                    if name.is_empty() {
+                        return Err(format!("`{text}`: empty field `{{{spec}}}`"));
+                    }
+                    if !literal.is_empty() {
+                        pieces.push(Piece::Text(std::mem::take(&mut literal)));
+                    }
+                    pieces.push(Piece::Field {
+                        name: name.to_string(),
+                        width,
+                    });
+                }
+                '}' => {
+                    return Err(format!(
+                        "`{text}`: `}}` without an opening `{{` (write `}}}}` for a brace)"
+                    ))
+                }
+                c => literal.push(c),
+            }
+        }
+        if !literal.is_empty() {
+            pieces.push(Piece::Text(literal));
+        }
+        Ok(Template {
+            text: text.to_string(),
+            pieces,
+        })
+    }
+
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// The literal text before the first field.
+    fn fixed_prefix(&self) -> &str {
+        match self.pieces.first() {
+            Some(Piece::Text(t)) => t,
+            _ => "",
+        }
+    }
+
+    /// Checks every field against the names a variant can fill in.
+    fn check_fields(&self, what: &str, params: &[String]) -> Result<(), Failure> {
+        for piece in &self.pieces {
+            let Piece::Field { name, width } = piece else {
+                continue;
+            };
+            let integer = matches!(name.as_str(), "seed" | "index");
+            let known = integer || name == "name" || params.iter().any(|p| p == name);
+            if !known {
+                let mut fields = vec!["name".to_string(), "seed".into(), "index".into()];
+                fields.extend(params.iter().cloned());
+                return Err(Failure::Input(format!(
+                    "{what} `{}`: unknown field `{{{name}}}`; fields are {}",
+                    self.text,
+                    fields.join(", ")
+                )));
+            }
+            if width.is_some() && !integer {
+                return Err(Failure::Input(format!(
+                    "{what} `{}`: `{{{name}}}` cannot be zero-padded (only seed and index)",
+                    self.text
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn render<'a>(&self, field: impl Fn(&str) -> FieldValue<'a>) -> String {
+        let mut out = String::new();
+        for piece in &self.pieces {
+            match piece {
+                Piece::Text(t) => out.push_str(t),
+                Piece::Field { name, width } => match (field(name), width) {
+                    (FieldValue::Int(n), Some(w)) => out.push_str(&format!("{n:0w$}")),
+                    (FieldValue::Int(n), None) => out.push_str(&n.to_string()),
+                    (FieldValue::Float(x), _) => out.push_str(&x.to_string()),
+                    (FieldValue::Text(t), _) => out.push_str(t),
+                },
+            }
+        }
+        out
+    }
+}
+
+/// Everything `graftal run` was given.
+pub struct RunArgs {
+    pub rules: PathBuf,
+    pub output: Option<String>,
+    pub seed: Option<u64>,
+    pub seeds: Option<SeedSet>,
+    pub overrides: Vec<Override>,
+    pub grid: Vec<GridAxis>,
+    pub jobs: Option<usize>,
+    pub shard: Option<Shard>,
+    pub manifest: Option<PathBuf>,
+    pub stats: Option<String>,
+    pub timings: bool,
+    pub max_primitives: usize,
+    pub max_evaluations: u64,
+    pub timeout: Option<f64>,
+    pub fail_fast: bool,
+    pub quiet: bool,
+    pub json: bool,
+    pub ascii: bool,
+}
+
+impl RunArgs {
+    /// A batch reports through a manifest and a summary; a single run (no
+    /// `--seeds`, `--grid`, `--shard` or `--manifest`) as it always did.
+    fn is_batch(&self) -> bool {
+        self.seeds.is_some()
+            || !self.grid.is_empty()
+            || self.shard.is_some()
+            || self.manifest.is_some()
+    }
+}
+
+/// Where a variant's statistics go.
+enum StatsSink {
+    None,
+    /// One JSON document per variant at a templated path.
+    Files(Template),
+    /// NDJSON, one line per variant, to standard output.
+    Stdout,
+    /// NDJSON, one line per variant, to a file.
+    File(PathBuf),
+    /// A single run's pretty document to standard output or a file.
+    Single(Option<PathBuf>),
+}
+
+struct Variant {
+    index: usize,
+    combo: usize,
+    seed: u64,
+    params: Vec<(String, f64)>,
+    output: PathBuf,
+    format: io::MeshFormat,
+    stats: Option<PathBuf>,
+}
+
+/// What producing one variant gave.
+struct Produced {
+    entry: VariantEntry,
+    /// Its stats document (compact for NDJSON), when stats are wanted.
+    stats: Option<String>,
+    /// Counts for the single-run message.
+    faces: usize,
+    vertices: usize,
+}
+
+pub fn run(args: RunArgs) -> Result<(), Failure> {
+    let batch = args.is_batch();
+    let name = args
+        .rules
+        .file_stem()
+        .map_or_else(|| "out".into(), |s| s.to_string_lossy().into_owned());
+    let output = Template::parse(args.output.as_deref().unwrap_or(if !batch {
+        "{name}.obj"
+    } else if args.grid.is_empty() {
+        "{name}-{seed}.obj"
+    } else {
+        "{name}-{index}.obj"
+    }))
+    .map_err(|m| Failure::Input(format!("--output: {m}")))?;
+
+    // Overrides of every grid combination, then one program each.
+    for axis in &args.grid {
+        if args.overrides.iter().any(|o| o.name == axis.name)
+            || args.grid.iter().filter(|a| a.name == axis.name).count() > 1
+        {
+            return Err(Failure::Input(format!(
+                "parameter `{}` is given twice (in --set or --grid)",
+                axis.name
+            )));
+        }
+    }
+    let combos = grid_combinations(&args.grid);
+    let rule_bytes = std::fs::read(&args.rules)
+        .map_err(|e| Failure::Input(format!("cannot read {}: {e}", args.rules.display())))?;
+    let mut programs: Vec<Program> = Vec::with_capacity(combos.len());
+    for combo in &combos {
+        let mut overrides = args.overrides.clone();
+        overrides.extend(args.grid.iter().zip(combo).map(|(axis, value)| Override {
+            name: axis.name.clone(),
+            value: value.clone(),
+        }));
+        programs.push(rules::compile_file(&args.rules, &overrides)?);
+    }
+    let param_names = programs[0].param_names.clone();
+    output.check_fields("--output", &param_names)?;
+
+    let stats_sink = match (&args.stats, batch) {
+        (None, _) => StatsSink::None,
+        (Some(s), false) if !s.contains('{') => {
+            StatsSink::Single((s != "-").then(|| PathBuf::from(s)))
+        }
+        (Some(s), _) if s == "-" => StatsSink::Stdout,
+        (Some(s), _) if s.contains('{') => {
+            let t = Template::parse(s).map_err(|m| Failure::Input(format!("--stats: {m}")))?;
+            t.check_fields("--stats", &param_names)?;
+            StatsSink::Files(t)
+        }
+        (Some(s), _) => StatsSink::File(PathBuf::from(s)),
+    };
+
+    // Variants, all paths known before anything runs.
+    let seeds: Vec<Option<u64>> = match (&args.seeds, args.seed) {
+        (Some(set), _) => set.seeds.iter().map(|&s| Some(s)).collect(),
+        (None, seed) => vec![seed],
+    };
+    let total = combos.len() as u64 * seeds.len() as u64;
+    if total > MAX_VARIANTS {
+        return Err(Failure::Input(format!(
+            "the batch has {total} variants, more than {MAX_VARIANTS}; split it"
+        )));
+    }
+    let total = total as usize;
+    let mut variants = Vec::new();
+    for index in 0..total {
+        if args.shard.is_some_and(|s| index % s.count != s.index) {
+            continue;
+        }
+        let combo = index / seeds.len();
+        let program = &programs[combo];
+        let seed = seeds[index % seeds.len()].unwrap_or(program.default_seed);
+        let params = grammar::parameter_values(program, Some(seed))
+            .map_err(|e| Failure::Runtime(e.to_string()))?;
+        let field = |f: &str| match f {
+            "name" => FieldValue::Text(&name),
+            "seed" => FieldValue::Int(seed),
+            "index" => FieldValue::Int(index as u64),
+            p => FieldValue::Float(
+                params
+                    .iter()
+                    .find(|(n, _)| n == p)
+                    .map_or(f64::NAN, |(_, v)| *v),
+            ),
+        };
+        let path = PathBuf::from(output.render(field));
+        let format = output_format(&path, args.ascii)?;
+        let stats = match &stats_sink {
+            StatsSink::Files(t) => Some(PathBuf::from(t.render(field))),
+            _ => None,
+        };
+        variants.push(Variant {
+            index,
+            combo,
+            seed,
+            params,
+            output: path,
+            format,
+            stats,
+        });
+    }
+    let manifest_path = match (&args.manifest, batch) {
+        (Some(p), _) => Some(p.clone()),
+        (None, false) => None,
+        (None, true) => {
+            let prefix = Path::new(output.fixed_prefix());
+            let dir = if output.fixed_prefix().ends_with('/') {
+                prefix
+            } else {
+                prefix.parent().unwrap_or(Path::new(""))
+            };
+            let file = match args.shard {
+                Some(s) => format!("manifest.shard-{}-of-{}.json", s.index, s.count),
+                None => "manifest.json".to_string(),
+            };
+            Some(dir.join(file))
+        }
+    };
+    check_distinct_paths(&variants, manifest_path.as_deref(), &stats_sink)?;
+
+    let spec = BatchSpec {
+        seeds: match (&args.seeds, args.seed) {
+            (Some(set), _) => Some(set.text.clone()),
+            (None, Some(s)) => Some(s.to_string()),
+            (None, None) => None,
+        },
+        grid: args
+            .grid
+            .iter()
+            .map(|a| GridSpec {
+                name: a.name.clone(),
+                values: a.values.clone(),
+            })
+            .collect(),
+        set: args
+            .overrides
+            .iter()
+            .map(|o| format!("{}={}", o.name, o.value))
+            .collect(),
+        output: output.text().to_string(),
+        max_primitives: args.max_primitives,
+        max_evaluations: args.max_evaluations,
+        timeout_seconds: args.timeout,
+        ascii: args.ascii,
+        timings: args.timings,
+    };
+    let context = Context {
+        batch,
+        programs: &programs,
+        args: &args,
+        want_stats: !matches!(stats_sink, StatsSink::None),
+        pretty_stats: matches!(stats_sink, StatsSink::Single(_) | StatsSink::Files(_)),
+    };
+
+    let started = Instant::now();
+    let progress = Progress::new(
+        batch && !args.quiet && std::io::stderr().is_terminal(),
+        variants.len(),
+    );
+    let mut ndjson = Vec::new();
+    let entries = run_variants(&context, &variants, &progress, |produced| {
+        if let Some(line) = &produced.stats {
+            match &stats_sink {
+                StatsSink::Stdout => {
+                    let mut out = std::io::stdout().lock();
+                    let _ = writeln!(out, "{line}");
+                    let _ = out.flush();
+                }
+                StatsSink::File(_) => {
+                    ndjson.extend_from_slice(line.as_bytes());
+                    ndjson.push(b'\n');
+                }
+                _ => {}
+            }
+        }
+    });
+    progress.finish();
+    let elapsed = started.elapsed();
+
+    if let StatsSink::File(path) = &stats_sink {
+        io::atomic::write_atomic(path, &ndjson)
+            .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))?;
+    }
+
+    let (entries, produced): (Vec<VariantEntry>, Vec<Option<Produced>>) =
+        entries.into_iter().unzip();
+    let summary = Summary::of(&entries);
+    let manifest = manifest_path.as_ref().map(|path| {
+        let m = make_manifest(&args, &rule_bytes, spec, total, entries.clone());
+        (path, m)
+    });
+
+    if !batch {
+        let entry = &entries[0];
+        if let Some(err) = &entry.error {
+            return Err(Failure::Limit(err.exit_code, err.message.clone()));
+        }
+        let p = produced[0].as_ref().expect("an ok variant was produced");
+        if let (StatsSink::Single(target), Some(doc)) = (&stats_sink, &p.stats) {
+            match target {
+                None => println!("{doc}"),
+                Some(path) => io::atomic::write_atomic(path, format!("{doc}\n").as_bytes())
+                    .map_err(|e| {
+                        Failure::Runtime(format!("cannot write {}: {e}", path.display()))
+                    })?,
+            }
+        }
+        if let Some((path, m)) = &manifest {
+            manifest::write(path, m)?;
+        }
+        if !args.quiet {
+            eprintln!(
+                "wrote {} ({} vertices, {} faces, seed {})",
+                entry.output, p.vertices, p.faces, entry.seed
+            );
+        }
+        return Ok(());
+    }
+
+    if let Some((path, m)) = &manifest {
+        manifest::write(path, m)?;
+    }
+    let first_failure = entries
+        .iter()
+        .find_map(|e| e.error.as_ref().map(|err| (e, err)));
+    if !args.quiet {
+        let seconds = elapsed.as_secs_f64();
+        eprintln!(
+            "{}: {} variants: {} written, {} failed, {} not run{} ({:.2} s, {:.0} variants/s)",
+            args.rules.display(),
+            entries.len(),
+            summary.ok,
+            summary.failed,
+            summary.not_run,
+            manifest_path
+                .as_ref()
+                .map_or(String::new(), |p| format!("; manifest {}", p.display())),
+            seconds,
+            entries.len() as f64 / seconds.max(1e-9)
+        );
+    }
+    let exit_code = first_failure.map_or(0, |(_, err)| err.exit_code);
+    if args.json {
+        let failures: Vec<serde_json::Value> = entries
+            .iter()
+            .filter_map(|e| {
+                e.error.as_ref().map(|err| {
+                    serde_json::json!({
+                        "index": e.index,
+                        "seed": e.seed,
+                        "output": e.output,
+                        "kind": err.kind,
+                        "exit_code": err.exit_code,
+                        "message": err.message,
+                    })
+                })
+            })
+            .collect();
+        let mut doc = serde_json::json!({
+            "rules": args.rules.display().to_string(),
+            "variants": entries.len(),
+            "ok": summary.ok,
+            "failed": summary.failed,
+            "not_run": summary.not_run,
+            "exit_code": exit_code,
+            "manifest": manifest_path.as_ref().map(|p| p.display().to_string()),
+            "failures": failures,
+        });
+        if args.timings {
+            doc["seconds"] = serde_json::json!(elapsed.as_secs_f64());
+        }
+        println!("{doc}");
+    }
+    match first_failure {
+        None => Ok(()),
+        Some((entry, err)) => Err(Failure::Batch(
+            err.exit_code,
+            format!(
+                "{} of {} variants failed; the first: variant {} (seed {}): {}",
+                summary.failed,
+                entries.len(),
+                entry.index,
+                entry.seed,
+                err.message
+            ),
+        )),
+    }
+}
+
+fn make_manifest(
+    args: &RunArgs,
+    rule_bytes: &[u8],
+    batch: BatchSpec,
+    total: usize,
+    variants: Vec<VariantEntry>,
+) -> Manifest {
+    Manifest {
+        graftal_version: env!("CARGO_PKG_VERSION").to_string(),
+        rules: args.rules.display().to_string(),
+        rule_sha256: hex(&Sha256::digest(rule_bytes)),
+        batch,
+        shard: args.shard.map(|s| ShardSpec {
+            index: s.index,
+            count: s.count,
+        }),
+        variant_count: total,
+        summary: Summary::of(&variants),
+        variants,
+    }
+}
+
+/// Every combination of the grid's values, first axis slowest.
+fn grid_combinations(grid: &[GridAxis]) -> Vec<Vec<String>> {
+    let mut combos: Vec<Vec<String>> = vec![Vec::new()];
+    for axis in grid {
+        combos = combos
+            .into_iter()
+            .flat_map(|c| {
+                axis.values.iter().map(move |v| {
+                    let mut c = c.clone();
+                    c.push(v.clone());
+                    c
+                })
+            })
+            .collect();
+    }
+    combos
+}
+
+/// Two variants writing one path would race and lose one of them.
+fn check_distinct_paths(
+    variants: &[Variant],
+    manifest: Option<&Path>,
+    stats: &StatsSink,
+) -> Result<(), Failure> {
+    let mut paths: Vec<(&Path, String)> = Vec::new();
+    for v in variants {
+        paths.push((
+            &v.output,
+            format!("the output of variant {} (seed {})", v.index, v.seed),
+        ));
+        if let Some(s) = &v.stats {
+            paths.push((
+                s,
+                format!("the stats of variant {} (seed {})", v.index, v.seed),
+            ));
+        }
+    }
+    if let Some(m) = manifest {
+        paths.push((m, "the manifest".to_string()));
+    }
+    if let StatsSink::File(p) | StatsSink::Single(Some(p)) = stats {
+        paths.push((p, "the stats file".to_string()));
+    }
+    paths.sort_by(|a, b| a.0.cmp(b.0));
+    if let Some(w) = paths.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(Failure::Input(format!(
+            "{} and {} would both be written to {}; add {{seed}}, {{index}} or a parameter to the template",
+            w[0].1,
+            w[1].1,
+            w[0].0.display()
+        )));
+    }
+    Ok(())
+}
+
+struct Context<'a> {
+    /// A batch reports each failure as it comes; a single run returns it.
+    batch: bool,
+    programs: &'a [Program],
+    args: &'a RunArgs,
+    want_stats: bool,
+    /// Stats as pretty documents rather than NDJSON lines.
+    pretty_stats: bool,
+}
+
+/// Runs every variant on `-j` workers and hands each result to `emit` in
+/// index order; returns the manifest entries (with what was produced) in
+/// index order, variants never started (`--fail-fast`) as `not_run`.
+fn run_variants(
+    context: &Context,
+    variants: &[Variant],
+    progress: &Progress,
+    mut emit: impl FnMut(&Produced),
+) -> Vec<(VariantEntry, Option<Produced>)> {
+    let jobs = context
+        .args
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .clamp(1, variants.len().max(1));
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let mut slots: Vec<Option<Produced>> = (0..variants.len()).map(|_| None).collect();
+    std::thread::scope(|scope| {
+        let (sender, receiver) = mpsc::channel::<(usize, Produced)>();
+        for _ in 0..jobs {
+            let sender = sender.clone();
+            let (next, stop) = (&next, &stop);
+            scope.spawn(move || loop {
+                if stop.load(Ordering::Relaxed) {
+                    break;
+                }
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(variant) = variants.get(k) else {
+                    break;
+                };
+                let produced = produce(context, variant);
+                if context.args.fail_fast && produced.entry.status == Status::Failed {
+                    stop.store(true, Ordering::Relaxed);
+                }
+                if sender.send((k, produced)).is_err() {
+                    break;
+                }
+            });
+        }
+        drop(sender);
+        let mut emitted = 0;
+        for (k, produced) in receiver {
+            progress.tick();
+            if let (true, Some(err)) = (context.batch, &produced.entry.error) {
+                progress.println(&format!(
+                    "error: variant {} (seed {}): {}",
+                    produced.entry.index, produced.entry.seed, err.message
+                ));
+            }
+            slots[k] = Some(produced);
+            while let Some(Some(p)) = slots.get(emitted) {
+                emit(p);
+                emitted += 1;
+            }
+        }
+        // After a fail-fast stop, what ran beyond a gap is still reported.
+        for p in slots[emitted..].iter().flatten() {
+            emit(p);
+        }
+    });
+    variants
+        .iter()
+        .zip(slots)
+        .map(|(v, produced)| match produced {
+            Some(p) => (p.entry.clone(), Some(p)),
+            None => (entry_for(v, Status::NotRun), None),
+        })
+        .collect()
+}
+
+fn entry_for(v: &Variant, status: Status) -> VariantEntry {
+    VariantEntry {
+        index: v.index,
+        seed: v.seed,
+        params: v.params.iter().cloned().collect::<BTreeMap<_, _>>(),
+        output: v.output.display().to_string(),
+        status,
+        bytes: None,
+        sha256: None,
+        counts: None,
+        error: None,
+        time_ms: None,
+        steps: Vec::new(),
+    }
+}
+
+/// Runs one variant and writes its files. Never panics on bad geometry or
+/// limits: a failure is recorded in the entry.
+fn produce(context: &Context, v: &Variant) -> Produced {
+    let started = Instant::now();
+    let args = context.args;
+    let program = &context.programs[v.combo];
+    let mut entry = entry_for(v, Status::Ok);
+    let fail = |mut entry: VariantEntry, kind: &str, exit_code: u8, message: String| {
+        entry.status = Status::Failed;
+        entry.error = Some(ErrorEntry {
+            kind: kind.to_string(),
+            exit_code,
+            message,
+        });
+        entry.time_ms = args.timings.then(|| started.elapsed().as_secs_f64() * 1e3);
+        Produced {
+            entry,
+            stats: None,
+            faces: 0,
+            vertices: 0,
+        }
+    };
+    let options = RunOptions {
+        seed: Some(v.seed),
+        max_elements: args.max_primitives,
+        max_evaluations: args.max_evaluations,
+        deadline: args.timeout.map(|s| started + Duration::from_secs_f64(s)),
+        ..RunOptions::default()
+    };
+    let result = match grammar::run(program, &options) {
+        Ok(result) => result,
+        Err(e) => {
+            let (kind, code) = match e.kind {
+                RunErrorKind::Failed => ("failed", EXIT_RUNTIME),
+                RunErrorKind::TooLarge => ("too_large", EXIT_TOO_LARGE),
+                RunErrorKind::Timeout => ("timeout", EXIT_TIMEOUT),
+                RunErrorKind::EvaluationLimit => ("evaluation_limit", EXIT_EVALUATIONS),
+            };
+            return fail(entry, kind, code, e.to_string());
+        }
+    };
+    let indexed = bridge::mesh_to_indexed(&result.mesh);
+    let bytes = match io::encode(&indexed, v.format) {
+        Ok(bytes) => bytes,
+        Err(e) => {
+            return fail(
+                entry,
+                "failed",
+                EXIT_RUNTIME,
+                format!("{}: {e}", v.output.display()),
+            )
+        }
+    };
+    let write = |path: &Path, bytes: &[u8]| -> Result<(), String> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        }
+        io::atomic::write_atomic(path, bytes)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))
+    };
+    if let Err(m) = write(&v.output, &bytes) {
+        return fail(entry, "write", EXIT_RUNTIME, m);
+    }
+    let mesh = &result.mesh;
+    entry.bytes = Some(bytes.len() as u64);
+    entry.sha256 = Some(hex(&Sha256::digest(&bytes)));
+    entry.counts = Some(Counts {
+        vertices: mesh.vert_count(),
+        edges: mesh.edge_count(),
+        faces: mesh.face_count(),
+    });
+    entry.steps = steps_json(&result.steps, args.timings);
+    let stats = context.want_stats.then(|| {
+        let report = mesh.report();
+        let gates = stats::gates(mesh, stats::CLOSE_TOLERANCE);
+        let doc = stats::run_stats_doc(program, &result, &report, &gates, args.timings);
+        if context.pretty_stats {
+            serde_json::to_string_pretty(&doc)
+        } else {
+            serde_json::to_string(&stats::VariantLine {
+                index: v.index,
+                output: &entry.output,
+                sha256: entry.sha256.as_deref().unwrap_or_default(),
+                stats: doc,
+            })
+        }
+        .expect("stats serialize")
+    });
+    if let (Some(path), Some(doc)) = (&v.stats, &stats) {
+        if let Err(m) = write(path, format!("{doc}\n").as_bytes()) {
+            return fail(entry, "write", EXIT_RUNTIME, m);
+        }
+    }
+    entry.time_ms = args.timings.then(|| started.elapsed().as_secs_f64() * 1e3);
+    Produced {
+        entry,
+        stats,
+        faces: mesh.face_count(),
+        vertices: mesh.vert_count(),
+    }
+}
+
+/// Lowercase hexadecimal.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// An indicatif bar on a terminal; nothing otherwise.
+struct Progress(Option<indicatif::ProgressBar>);
+
+impl Progress {
+    fn new(show: bool, total: usize) -> Progress {
+        Progress(show.then(|| {
+            let bar = indicatif::ProgressBar::with_draw_target(
+                Some(total as u64),
+                indicatif::ProgressDrawTarget::stderr(),
+            );
+            if let Ok(style) = indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {pos}/{len} variants, {per_sec}, ETA {eta}",
+            ) {
+                bar.set_style(style.progress_chars("=> "));
+            }
+            bar
+        }))
+    }
+
+    fn tick(&self) {
+        if let Some(bar) = &self.0 {
+            bar.inc(1);
+        }
+    }
+
+    fn println(&self, line: &str) {
+        match &self.0 {
+            Some(bar) => bar.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.0 {
+            bar.finish_and_clear();
+        }
+    }
+}
