@@ -5,6 +5,7 @@
 //! Outputs are written atomically: a temporary file, then a rename.
 
 mod stats;
+mod tooling;
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -87,6 +88,46 @@ pub enum Command {
         /// Write STL and PLY as ASCII.
         #[arg(long)]
         ascii: bool,
+    },
+    /// Print the JSON Schema of rule files (for editors; see docs/tooling.md).
+    Schema,
+    /// Check rule files for likely mistakes: undefined names, unused
+    /// parameters, rules and compounds, probabilities outside [0, 1],
+    /// conditions that can never (or always) match. Exit 0 clean, 1 with
+    /// warnings, 2 when a file does not compile.
+    Lint {
+        /// Rule files (.toml or .ron).
+        #[arg(required = true)]
+        rules: Vec<PathBuf>,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+        /// Do not report findings with this code (repeatable).
+        #[arg(long, value_name = "CODE", value_parser = clap::builder::PossibleValuesParser::new(crate::rules::lint::CODES))]
+        allow: Vec<String>,
+    },
+    /// Run a rule file without writing a mesh and tell, per step, what it
+    /// matched, what it applied to, and why the rest was not.
+    Explain {
+        rules: PathBuf,
+        #[arg(long)]
+        seed: Option<u64>,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+        #[arg(long, default_value_t = grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
+        max_primitives: usize,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions {
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the man page (roff), or write one page per command to DIR.
+    Man {
+        #[arg(long, value_name = "DIR")]
+        dir: Option<PathBuf>,
     },
 }
 
@@ -272,6 +313,21 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let indexed = io::read_mesh(&input).map_err(|e| Failure::Input(e.to_string()))?;
             write_output(&output, format, &indexed)
         }
+        Command::Schema => tooling::schema(),
+        Command::Lint {
+            rules,
+            overrides,
+            allow,
+        } => tooling::lint(&rules, &overrides, &allow),
+        Command::Explain {
+            rules,
+            seed,
+            overrides,
+            json,
+            max_primitives,
+        } => tooling::explain(&rules, seed, &overrides, json, max_primitives),
+        Command::Completions { shell } => tooling::completions(shell),
+        Command::Man { dir } => tooling::man(dir.as_deref()),
     }
 }
 
