@@ -76,7 +76,14 @@ fn schema_command_prints_the_committed_schema() {
 #[test]
 fn every_example_validates_against_the_schema() {
     let v = validator();
-    for path in examples() {
+    let mut files = examples();
+    files.extend(
+        std::fs::read_dir(root().join("benches"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml")),
+    );
+    for path in files {
         let json = schema::file_to_json(&path).expect("example converts to JSON");
         let errs = errors(&v, &json);
         assert!(errs.is_empty(), "{}: {errs:#?}", path.display());

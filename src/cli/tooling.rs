@@ -342,6 +342,13 @@ fn explain_text(doc: &ExplainJson) -> String {
             );
             continue;
         }
+        // Transforms, `merge`, `region_*` and `edit_node` report what they
+        // moved or selected (what `from` sees), not new elements.
+        let verb = match step.op {
+            "translate" | "rotate" | "scale" | "merge" | "region_extend" | "region_reduce"
+            | "edit_node" => "moved or selected",
+            _ => "created",
+        };
         let made = |s: &ExplainStep| {
             let mut parts = Vec::new();
             for (n, one, many) in [
@@ -369,11 +376,11 @@ fn explain_text(doc: &ExplainJson) -> String {
             && step.runs > 0
             && step.created_vertices + step.created_edges + step.created_faces > 0
         {
-            s += &format!("{indent}created {}{runs}\n", made(step));
+            s += &format!("{indent}{verb} {}{runs}\n", made(step));
             continue;
         }
         s += &format!(
-            "{indent}{}, {} matched, {} applied{runs}; created {}\n",
+            "{indent}{}, {} matched, {} applied{runs}; {verb} {}\n",
             count(step.candidates, "candidate", "candidates"),
             step.matched,
             step.applied,
