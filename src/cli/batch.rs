@@ -21,7 +21,7 @@ use super::manifest::{
     VariantEntry,
 };
 use super::stats::{self, steps_json};
-use super::{output_format, Failure, EXIT_EVALUATIONS, EXIT_RUNTIME, EXIT_TIMEOUT, EXIT_TOO_LARGE};
+use super::{output_format, Failure, EXIT_RUNTIME};
 use crate::grammar::{self, RunErrorKind, RunOptions};
 use crate::io::{self, bridge};
 use crate::rules::{self, Override, Program};
@@ -860,13 +860,13 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     let result = match grammar::run(program, &options) {
         Ok(result) => result,
         Err(e) => {
-            let (kind, code) = match e.kind {
-                RunErrorKind::Failed => ("failed", EXIT_RUNTIME),
-                RunErrorKind::TooLarge => ("too_large", EXIT_TOO_LARGE),
-                RunErrorKind::Timeout => ("timeout", EXIT_TIMEOUT),
-                RunErrorKind::EvaluationLimit => ("evaluation_limit", EXIT_EVALUATIONS),
+            let kind = match e.kind {
+                RunErrorKind::Failed => "failed",
+                RunErrorKind::TooLarge => "too_large",
+                RunErrorKind::Timeout => "timeout",
+                RunErrorKind::EvaluationLimit => "evaluation_limit",
             };
-            return fail(entry, kind, code, e.to_string());
+            return fail(entry, kind, super::run_exit_code(e.kind), e.to_string());
         }
     };
     let indexed = bridge::mesh_to_indexed(&result.mesh);

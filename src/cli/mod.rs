@@ -7,6 +7,7 @@
 mod batch;
 mod manifest;
 mod stats;
+mod tooling;
 mod verify;
 
 use std::io::{IsTerminal, Write};
@@ -176,6 +177,46 @@ pub enum Command {
         /// Write STL and PLY as ASCII.
         #[arg(long)]
         ascii: bool,
+    },
+    /// Print the JSON Schema of rule files (for editors; see docs/tooling.md).
+    Schema,
+    /// Check rule files for likely mistakes: undefined names, unused
+    /// parameters, rules and compounds, probabilities outside [0, 1],
+    /// conditions that can never (or always) match. Exit 0 clean, 1 with
+    /// warnings, 2 when a file does not compile.
+    Lint {
+        /// Rule files (.toml or .ron).
+        #[arg(required = true)]
+        rules: Vec<PathBuf>,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+        /// Do not report findings with this code (repeatable).
+        #[arg(long, value_name = "CODE", value_parser = clap::builder::PossibleValuesParser::new(crate::rules::lint::CODES))]
+        allow: Vec<String>,
+    },
+    /// Run a rule file without writing a mesh and tell, per step, what it
+    /// matched, what it applied to, and why the rest was not.
+    Explain {
+        rules: PathBuf,
+        #[arg(long)]
+        seed: Option<u64>,
+        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
+        overrides: Vec<Override>,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+        #[arg(long, default_value_t = grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
+        max_primitives: usize,
+    },
+    /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
+    Completions {
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the man page (roff), or write one page per command to DIR.
+    Man {
+        #[arg(long, value_name = "DIR")]
+        dir: Option<PathBuf>,
     },
 }
 
@@ -395,6 +436,31 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let indexed = io::read_mesh(&input).map_err(|e| Failure::Input(e.to_string()))?;
             write_output(&output, format, &indexed)
         }
+        Command::Schema => tooling::schema(),
+        Command::Lint {
+            rules,
+            overrides,
+            allow,
+        } => tooling::lint(&rules, &overrides, &allow),
+        Command::Explain {
+            rules,
+            seed,
+            overrides,
+            json,
+            max_primitives,
+        } => tooling::explain(&rules, seed, &overrides, json, max_primitives),
+        Command::Completions { shell } => tooling::completions(shell),
+        Command::Man { dir } => tooling::man(dir.as_deref()),
+    }
+}
+
+/// The exit code of a failed run: 1, or the code of the limit it hit.
+pub(crate) fn run_exit_code(kind: grammar::RunErrorKind) -> u8 {
+    match kind {
+        grammar::RunErrorKind::Failed => EXIT_RUNTIME,
+        grammar::RunErrorKind::TooLarge => EXIT_TOO_LARGE,
+        grammar::RunErrorKind::Timeout => EXIT_TIMEOUT,
+        grammar::RunErrorKind::EvaluationLimit => EXIT_EVALUATIONS,
     }
 }
 

@@ -43,8 +43,8 @@ impl Override {
     }
 }
 
-/// Reads and parses a rule file (format chosen by extension).
-pub fn load(path: &Path) -> Result<(SourceFile, RuleFile), RuleError> {
+/// Reads a rule file's text.
+pub fn load_text(path: &Path) -> Result<SourceFile, RuleError> {
     let name = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|err| {
         RuleError::at(
@@ -56,7 +56,12 @@ pub fn load(path: &Path) -> Result<(SourceFile, RuleFile), RuleError> {
             format!("cannot read rule file: {err}"),
         )
     })?;
-    let file = SourceFile { name, text };
+    Ok(SourceFile { name, text })
+}
+
+/// Reads and parses a rule file (format chosen by extension).
+pub fn load(path: &Path) -> Result<(SourceFile, RuleFile), RuleError> {
+    let file = load_text(path)?;
     let ast = parse(
         &file,
         format_of(path).map_err(|m| RuleError::at(&file, None, m))?,
@@ -101,7 +106,7 @@ pub fn parse(file: &SourceFile, format: SourceFormat) -> Result<RuleFile, RuleEr
 
 /// Single-name element properties; dotted ones (`pos.x`) are listed in
 /// [`property_for`]. Parameters may not take these names.
-const PROPERTY_NAMES: &[&str] = &[
+pub(crate) const PROPERTY_NAMES: &[&str] = &[
     "id",
     "random",
     "length",
@@ -129,7 +134,7 @@ fn axis(c: &str) -> Option<usize> {
 }
 
 /// The property a name denotes for elements of `domain`, if any.
-fn property_for(domain: Domain, name: &str) -> Option<Property> {
+pub(crate) fn property_for(domain: Domain, name: &str) -> Option<Property> {
     use Domain::{Edge as E, Face as F, Vert as V};
     use Property::*;
     let simple = match (domain, name) {
@@ -453,7 +458,7 @@ fn property_help(domain: Domain) -> &'static str {
 
 /// Which element kinds an operator's selection may be made of; the first
 /// is the default.
-fn allowed_domains(op: &Operation) -> &'static [Domain] {
+pub(crate) fn allowed_domains(op: &Operation) -> &'static [Domain] {
     use Domain::*;
     match op {
         Operation::Translate(_)
@@ -496,7 +501,7 @@ fn plural(d: Domain) -> &'static str {
     }
 }
 
-fn domain_of(name: DomainName) -> Domain {
+pub(crate) fn domain_of(name: DomainName) -> Domain {
     match name {
         DomainName::Verts => Domain::Vert,
         DomainName::Edges => Domain::Edge,
@@ -1855,7 +1860,7 @@ fn closest(word: &str) -> Option<&'static str> {
 
 /// Index of the candidate nearest to `word` by edit distance, if close
 /// enough to be a typo (at most 2 edits, more for long words).
-fn closest_in<S: AsRef<str>>(word: &str, candidates: &[S]) -> Option<usize> {
+pub(crate) fn closest_in<S: AsRef<str>>(word: &str, candidates: &[S]) -> Option<usize> {
     fn distance(a: &str, b: &str) -> usize {
         let b: Vec<char> = b.chars().collect();
         let mut row: Vec<usize> = (0..=b.len()).collect();

@@ -101,6 +101,9 @@
 use std::collections::HashMap;
 use std::f64::consts::{E, PI, TAU};
 
+mod tree;
+pub(crate) use tree::Tree;
+
 /// Byte range within the expression source string.
 pub type Span = std::ops::Range<usize>;
 
@@ -404,6 +407,29 @@ macro_rules! instruction_set {
                     _ => None,
                 }
             }
+
+            /// The instruction as an operation and its operand form, for
+            /// rebuilding the expression tree (see [`Tree`]).
+            fn decoded(self) -> tree::Decoded {
+                use tree::{Decoded, Operand};
+                match self {
+                    Op::Const(index) => Decoded::Push(Operand::Const(index)),
+                    Op::Slot(slot) => Decoded::Push(Operand::Slot(slot)),
+                    Op::AndJump(skip) => Decoded::Logic { and: true, skip },
+                    Op::OrJump(skip) => Decoded::Logic { and: false, skip },
+                    $(Op::$unary => Decoded::Unary(Unary::$unary),)*
+                    $(
+                        Op::$binary => Decoded::Binary(Binary::$binary, None),
+                        Op::$binary_const(index) => {
+                            Decoded::Binary(Binary::$binary, Some(Operand::Const(index)))
+                        }
+                        Op::$binary_slot(slot) => {
+                            Decoded::Binary(Binary::$binary, Some(Operand::Slot(slot)))
+                        }
+                    )*
+                    $(Op::$ternary => Decoded::Ternary(Ternary::$ternary),)*
+                }
+            }
         }
 
         impl Expr {
@@ -520,7 +546,7 @@ const DEGREES_TO_RADIANS: f64 = PI / 180.0;
 const RADIANS_TO_DEGREES: f64 = 180.0 / PI;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Unary {
+pub(crate) enum Unary {
     Neg,
     Not,
     /// Maps a value to exactly 0 or 1; ends `&&` and `||`.
@@ -546,7 +572,7 @@ enum Unary {
 
 impl Unary {
     #[inline(always)]
-    fn apply(self, x: f64) -> f64 {
+    pub(crate) fn apply(self, x: f64) -> f64 {
         match self {
             Unary::Neg => -x,
             Unary::Not => from_bool(x == 0.0),
@@ -577,7 +603,7 @@ impl Unary {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Binary {
+pub(crate) enum Binary {
     Add,
     Sub,
     Mul,
@@ -598,7 +624,7 @@ enum Binary {
 
 impl Binary {
     #[inline(always)]
-    fn apply(self, a: f64, b: f64) -> f64 {
+    pub(crate) fn apply(self, a: f64, b: f64) -> f64 {
         match self {
             Binary::Add => a + b,
             Binary::Sub => a - b,
@@ -634,7 +660,7 @@ impl Binary {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Ternary {
+pub(crate) enum Ternary {
     Clamp,
     Lerp,
     Smoothstep,
@@ -642,7 +668,7 @@ enum Ternary {
 
 impl Ternary {
     #[inline(always)]
-    fn apply(self, a: f64, b: f64, c: f64) -> f64 {
+    pub(crate) fn apply(self, a: f64, b: f64, c: f64) -> f64 {
         match self {
             Ternary::Clamp => clamp(a, b, c),
             Ternary::Lerp => a + (b - a) * c,

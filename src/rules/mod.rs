@@ -10,8 +10,10 @@ pub mod ast;
 pub mod compile;
 pub mod diagnostic;
 pub mod expr;
+pub mod lint;
 pub mod program;
 pub mod random;
+pub mod schema;
 pub mod spanned;
 
 pub use compile::{compile_file, Override};

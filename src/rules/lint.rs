@@ -1,0 +1,1485 @@
+//! `graftal lint`: static checks of a rule file beyond what compiling it
+//! requires. Every finding is located (`file:line:column`) with the same span
+//! machinery as compile errors.
+//!
+//! | code | severity | finding |
+//! |---|---|---|
+//! | `undefined-name` | error | a name in an expression that is no parameter (or, where allowed, element property); all of them, where compiling stops at the first |
+//! | `unused-param` | warning | a parameter no expression uses (directly or through other used parameters) |
+//! | `unused-rule` | warning | a `[rules.NAME]` no reachable step includes |
+//! | `unused-compound` | warning | a `[compound.NAME]` no reachable step calls |
+//! | `probability-range` | warning | a `probability` expression that can leave [0, 1] with the file's parameter values (the run would stop with an error) |
+//! | `never-true` | warning | a condition (`select`, a compound's `select`, `nodes`) no element can satisfy |
+//! | `always-true` | warning | a condition every element satisfies (it selects nothing out) |
+//!
+//! Conditions are analysed by interval arithmetic over the compiled
+//! expression ([`crate::rules::expr::Tree`]): each element property has its
+//! range (counts are integers ≥ 0, `sides` ≥ 3, `random` in [0, 1), normal and
+//! direction components in [−1, 1], lengths and areas ≥ 0, …); `&&` narrows
+//! the ranges of properties compared with something on its left before
+//! evaluating its right (`x > 1 && x < 0` is never true), `||` likewise with
+//! the left side false. Parameters count as any finite number in conditions,
+//! since `--set` can change them (so `scoped == 0` is not flagged); in
+//! `probability` they take the ranges their definitions allow.
+
+use std::cell::RefCell;
+use std::collections::BTreeSet;
+use std::ops::Range as Span;
+use std::path::Path;
+
+use crate::kernel::Domain;
+
+use super::ast::{self, Operation, ParamSpec, RuleFile, Scalar, VectorSpec};
+use super::compile::{
+    self, allowed_domains, domain_of, property_for, property_from_index, property_index, Override,
+    PROPERTY_SLOTS,
+};
+use super::diagnostic::{find_key, find_literal, line_column, RuleError, SourceFile};
+use super::expr::{Binary, Expr, Ternary, Tree, Unary};
+use super::program::{ParamKind, Program, Property};
+use super::spanned::{SourceFormat, Spanned};
+
+/// How bad a finding is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Severity {
+    Warning,
+    Error,
+}
+
+/// One lint finding.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finding {
+    pub severity: Severity,
+    /// Stable code (`never-true`, …), usable with `--allow`.
+    pub code: &'static str,
+    /// `file:line:column`, or the file name.
+    pub location: String,
+    pub message: String,
+    pub help: Option<String>,
+    /// Byte offset, for sorting.
+    offset: usize,
+}
+
+impl Finding {
+    /// `file:line:col: warning[code]: message`.
+    pub fn headline(&self) -> String {
+        let severity = match self.severity {
+            Severity::Warning => "warning",
+            Severity::Error => "error",
+        };
+        format!(
+            "{}: {severity}[{}]: {}",
+            self.location, self.code, self.message
+        )
+    }
+}
+
+/// Every lint code, for `--allow` and the documentation.
+pub const CODES: &[&str] = &[
+    "undefined-name",
+    "unused-param",
+    "unused-rule",
+    "unused-compound",
+    "probability-range",
+    "never-true",
+    "always-true",
+];
+
+/// Lints a rule file. `Err` when it does not parse or compile (a located
+/// error); otherwise the findings, errors (`undefined-name`) first. When
+/// there are undefined names the file does not compile, and only those are
+/// reported.
+pub fn lint_file(path: &Path, overrides: &[Override]) -> Result<Vec<Finding>, RuleError> {
+    let (file, ast) = compile::load(path)?;
+    let format = compile::format_of(path).map_err(|m| RuleError::at(&file, None, m))?;
+    let linter = Linter::new(&file, format, &ast);
+    let sites = linter.sites();
+    let undefined = linter.undefined_names(&sites);
+    if !undefined.is_empty() {
+        return Ok(undefined);
+    }
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let program = compile::compile(&file, format, &ast, overrides, &base_dir)?;
+    let mut findings = Vec::new();
+    linter.unused_params(&sites, &mut findings);
+    linter.unused_definitions(&mut findings);
+    linter.conditions(&sites, &program, &mut findings);
+    findings.sort_by(|a, b| {
+        (std::cmp::Reverse(a.severity), a.offset, a.code, &a.message).cmp(&(
+            std::cmp::Reverse(b.severity),
+            b.offset,
+            b.code,
+            &b.message,
+        ))
+    });
+    Ok(findings)
+}
+
+/// What names an expression may use, and what it is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Context {
+    /// A parameter's definition (`params.NAME`): parameters only.
+    Param(usize),
+    /// A kernel operator's value: parameters only.
+    Operator,
+    /// A G³ command's or compound's value, per primitive of this kind.
+    Primitive(Domain),
+    /// A condition over primitives of this kind.
+    Condition(Domain),
+}
+
+/// An expression string in the file.
+struct Site<'a> {
+    text: &'a str,
+    /// Where the expression's text starts.
+    span: Option<Span<usize>>,
+    context: Context,
+    /// The key it is the value of (`select`, `probability`, …).
+    key: &'static str,
+}
+
+struct Linter<'a> {
+    file: &'a SourceFile,
+    format: SourceFormat,
+    ast: &'a RuleFile,
+    /// Parameter names by slot (sorted, as the compiler assigns them).
+    params: Vec<String>,
+}
+
+impl<'a> Linter<'a> {
+    fn new(file: &'a SourceFile, format: SourceFormat, ast: &'a RuleFile) -> Self {
+        let mut params: Vec<String> = ast.params.0.iter().map(|(n, _)| n.value.clone()).collect();
+        params.sort();
+        params.dedup();
+        Linter {
+            file,
+            format,
+            ast,
+            params,
+        }
+    }
+
+    fn location(&self, span: Option<&Span<usize>>) -> (String, usize) {
+        match span {
+            Some(s) => {
+                let (line, column) = line_column(&self.file.text, s.start);
+                (format!("{}:{line}:{column}", self.file.name), s.start)
+            }
+            None => (self.file.name.clone(), 0),
+        }
+    }
+
+    fn finding(
+        &self,
+        severity: Severity,
+        code: &'static str,
+        span: Option<&Span<usize>>,
+        message: String,
+        help: Option<String>,
+    ) -> Finding {
+        let (location, offset) = self.location(span);
+        Finding {
+            severity,
+            code,
+            location,
+            message,
+            help,
+            offset,
+        }
+    }
+
+    /// Where a string value's content starts (TOML spans include quotes;
+    /// RON has none, so the literal is searched for).
+    fn content_span<T>(&self, spanned: &Spanned<T>, content: &str) -> Option<Span<usize>> {
+        match &spanned.span {
+            Some(span) => {
+                let raw = &self.file.text[span.clone()];
+                let quote = if raw.starts_with("\"\"\"") || raw.starts_with("'''") {
+                    3
+                } else if raw.starts_with('"') || raw.starts_with('\'') {
+                    1
+                } else {
+                    0
+                };
+                Some(span.start + quote..span.start + quote + content.len())
+            }
+            None => find_literal(&self.file.text, content),
+        }
+    }
+
+    fn key_span<T>(&self, spanned: &Spanned<T>, key: &str) -> Option<Span<usize>> {
+        spanned.span.clone().or_else(|| match self.format {
+            SourceFormat::Ron => find_key(&self.file.text, key),
+            SourceFormat::Toml => None,
+        })
+    }
+
+    // ---- collecting expressions ------------------------------------------
+
+    fn sites(&self) -> Vec<Site<'a>> {
+        let mut out = Vec::new();
+        let mut declared: Vec<&(Spanned<String>, Spanned<ParamSpec>)> =
+            self.ast.params.0.iter().collect();
+        declared.sort_by(|a, b| a.0.value.cmp(&b.0.value));
+        for (name, spec) in declared.iter().map(|p| (&p.0, &p.1)) {
+            let Some(slot) = self.params.iter().position(|p| *p == name.value) else {
+                continue;
+            };
+            let context = Context::Param(slot);
+            match &spec.value {
+                ParamSpec::Number(_) => {}
+                ParamSpec::Expr(text) => out.push(Site {
+                    text,
+                    span: self.content_span(spec, text),
+                    context,
+                    key: "params",
+                }),
+                ParamSpec::Table(t) => {
+                    let pairs = [&t.uniform, &t.normal, &t.int, &t.clamp];
+                    for ast::Pair(values) in pairs.into_iter().flatten() {
+                        for v in values {
+                            self.value(v, context, "params", &mut out);
+                        }
+                    }
+                    for v in t.choice.iter().flatten() {
+                        self.value(v, context, "params", &mut out);
+                    }
+                }
+            }
+        }
+        let compound_domain = |name: &str| {
+            self.ast
+                .compound
+                .0
+                .iter()
+                .find(|(n, _)| n.value == name)
+                .map(|(_, d)| domain_of(d.on.value))
+        };
+        let mut steps: Vec<&ast::Step> = Vec::new();
+        steps.extend(&self.ast.start);
+        steps.extend(&self.ast.steps);
+        for (_, rule) in &self.ast.rules.0 {
+            steps.extend(&rule.steps);
+        }
+        for (_, def) in &self.ast.compound.0 {
+            let domain = domain_of(def.on.value);
+            if let Some(s) = &def.select {
+                out.push(self.condition(s, domain, "select"));
+            }
+            self.frame(
+                [&def.length, &def.radius],
+                [&def.heading, &def.up],
+                domain,
+                &mut out,
+            );
+            steps.extend(&def.steps);
+        }
+        for step in steps {
+            let domain = match (&step.on, &step.op, &step.compound) {
+                (Some(on), _, _) => domain_of(on.value),
+                (None, Some((_, op)), _) => allowed_domains(&op.value)[0],
+                (None, None, Some((_, call))) => {
+                    compound_domain(&call.value.name.value).unwrap_or(Domain::Face)
+                }
+                (None, None, None) => Domain::Face,
+            };
+            if let Some(s) = &step.select {
+                out.push(self.condition(s, domain, "select"));
+            }
+            if let Some((_, call)) = &step.compound {
+                let f = &call.value.frame;
+                self.frame(
+                    [&f.length, &f.radius],
+                    [&f.heading, &f.up],
+                    domain,
+                    &mut out,
+                );
+            }
+            if let Some((_, op)) = &step.op {
+                self.operation(&op.value, domain, &mut out);
+            }
+        }
+        out
+    }
+
+    fn condition(&self, s: &'a Spanned<String>, domain: Domain, key: &'static str) -> Site<'a> {
+        Site {
+            text: &s.value,
+            span: self.content_span(s, &s.value),
+            context: Context::Condition(domain),
+            key,
+        }
+    }
+
+    fn value(
+        &self,
+        v: &'a ast::Value,
+        context: Context,
+        key: &'static str,
+        out: &mut Vec<Site<'a>>,
+    ) {
+        if let Scalar::Expr(text) = &v.value {
+            out.push(Site {
+                text,
+                span: self.content_span(v, text),
+                context,
+                key,
+            });
+        }
+    }
+
+    fn vector(
+        &self,
+        v: &'a ast::Vector,
+        context: Context,
+        key: &'static str,
+        out: &mut Vec<Site<'a>>,
+    ) {
+        match &v.value {
+            VectorSpec::Components(parts) => {
+                for p in parts.iter() {
+                    self.value(p, context, key, out);
+                }
+            }
+            VectorSpec::Uniform(Scalar::Expr(text)) => out.push(Site {
+                text,
+                span: self.content_span(v, text),
+                context,
+                key,
+            }),
+            VectorSpec::Uniform(Scalar::Number(_)) => {}
+        }
+    }
+
+    fn frame(
+        &self,
+        values: [&'a Option<ast::Value>; 2],
+        vectors: [&'a Option<ast::Vector>; 2],
+        domain: Domain,
+        out: &mut Vec<Site<'a>>,
+    ) {
+        let context = Context::Primitive(domain);
+        for v in values.into_iter().flatten() {
+            self.value(v, context, "compound", out);
+        }
+        for v in vectors.into_iter().flatten() {
+            self.vector(v, context, "compound", out);
+        }
+    }
+
+    fn operation(&self, op: &'a Operation, domain: Domain, out: &mut Vec<Site<'a>>) {
+        let k = Context::Operator;
+        let mut values: Vec<&'a ast::Value> = Vec::new();
+        let mut vectors: Vec<&'a ast::Vector> = Vec::new();
+        let mut pairs: Vec<&'a ast::Pair> = Vec::new();
+        match op {
+            Operation::Vertex(o) => {
+                vectors.extend(&o.at);
+                values.extend(&o.radius);
+            }
+            Operation::Circle(o) => values.extend([&o.segments, &o.radius].into_iter().flatten()),
+            Operation::Grid(o) => pairs.extend([&o.segments, &o.size].into_iter().flatten()),
+            Operation::Cube(o) => values.extend(&o.size),
+            Operation::UvSphere(o) => {
+                values.extend([&o.segments, &o.rings, &o.radius].into_iter().flatten())
+            }
+            Operation::Cylinder(o) => values.extend(
+                [&o.segments, &o.radius, &o.radius_top, &o.depth]
+                    .into_iter()
+                    .flatten(),
+            ),
+            Operation::Cone(o) => {
+                values.extend([&o.segments, &o.radius, &o.depth].into_iter().flatten())
+            }
+            Operation::Import(_)
+            | Operation::Triangulate(_)
+            | Operation::Reverse(_)
+            | Operation::RecomputeNormals(_)
+            | Operation::Delete(_)
+            | Operation::Duplicate(_)
+            | Operation::DissolveEdges(_)
+            | Operation::MakeFace(_)
+            | Operation::RegionExtend(_)
+            | Operation::RegionReduce(_) => {}
+            Operation::Translate(o) => vectors.push(&o.offset),
+            Operation::Rotate(o) => {
+                values.push(&o.angle);
+                vectors.extend([&o.axis, &o.center].into_iter().flatten());
+            }
+            Operation::Scale(o) => {
+                vectors.push(&o.factor);
+                vectors.extend(&o.center);
+            }
+            Operation::ExtrudeVerts(o)
+            | Operation::ExtrudeEdges(o)
+            | Operation::ExtrudeFaces(o)
+            | Operation::ExtrudeRegion(o) => {
+                vectors.extend(&o.offset);
+                values.extend(&o.distance);
+            }
+            Operation::InsetFaces(o) | Operation::InsetRegion(o) => {
+                values.push(&o.thickness);
+                values.extend(&o.depth);
+            }
+            Operation::SplitEdges(o) => {
+                values.extend(&o.cuts);
+                values.extend(o.ratios.iter().flatten());
+            }
+            Operation::Merge(o) => values.push(&o.distance),
+            Operation::Mirror(o) => {
+                vectors.extend([&o.normal, &o.point].into_iter().flatten());
+                values.extend(&o.merge_distance);
+            }
+            Operation::Skin(o) => values.extend([&o.sides, &o.radius].into_iter().flatten()),
+            Operation::CreateEdge(c)
+            | Operation::SplitEdge(c)
+            | Operation::CreateFace(c)
+            | Operation::SplitFace(c)
+            | Operation::EditNode(c) => {
+                let p = Context::Primitive(domain);
+                for (v, key) in [
+                    (&c.length, "length"),
+                    (&c.radius, "radius"),
+                    (&c.turn, "turn"),
+                    (&c.pitch, "pitch"),
+                    (&c.roll, "roll"),
+                    (&c.vary_length, "vary_length"),
+                    (&c.vary_radius, "vary_radius"),
+                    (&c.vary_turn, "vary_turn"),
+                    (&c.vary_pitch, "vary_pitch"),
+                    (&c.vary_roll, "vary_roll"),
+                    (&c.probability, "probability"),
+                ] {
+                    if let Some(v) = v {
+                        self.value(v, p, key, out);
+                    }
+                }
+                for (v, key) in [(&c.heading, "heading"), (&c.up, "up")] {
+                    if let Some(v) = v {
+                        self.vector(v, p, key, out);
+                    }
+                }
+                if let Some(n) = &c.nodes {
+                    out.push(self.condition(n, Domain::Vert, "nodes"));
+                }
+            }
+        }
+        for v in values {
+            self.value(v, k, "operator", out);
+        }
+        for v in vectors {
+            self.vector(v, k, "operator", out);
+        }
+        for ast::Pair(p) in pairs {
+            for v in p {
+                self.value(v, k, "operator", out);
+            }
+        }
+    }
+
+    // ---- names ---------------------------------------------------------------
+
+    /// Compiles a site's expression as the compiler would (parameters are
+    /// slots 0.., properties follow); unknown names are collected instead of
+    /// failing, and so are the parameters read.
+    fn compile_site(&self, site: &Site) -> (Option<Expr>, Vec<String>, BTreeSet<usize>) {
+        let unknown: RefCell<Vec<String>> = RefCell::new(Vec::new());
+        let used: RefCell<BTreeSet<usize>> = RefCell::new(BTreeSet::new());
+        let base = self.params.len() as u32;
+        let domain = match site.context {
+            Context::Primitive(d) | Context::Condition(d) => Some(d),
+            Context::Param(_) | Context::Operator => None,
+        };
+        let resolver = |name: &str| -> Option<u32> {
+            if let Some(slot) = self.params.iter().position(|p| p == name) {
+                used.borrow_mut().insert(slot);
+                return Some(slot as u32);
+            }
+            if let Some(p) = domain.and_then(|d| property_for(d, name)) {
+                return Some(base + property_index(p));
+            }
+            unknown.borrow_mut().push(name.to_owned());
+            // Keep parsing to find every unknown name.
+            Some(u32::MAX)
+        };
+        let expr = Expr::compile(site.text, &resolver).ok();
+        (expr, unknown.into_inner(), used.into_inner())
+    }
+
+    fn undefined_names(&self, sites: &[Site]) -> Vec<Finding> {
+        let mut out = Vec::new();
+        for site in sites {
+            let (_, unknown, _) = self.compile_site(site);
+            for name in unknown {
+                let span = site.span.as_ref().and_then(|s| {
+                    name_offset(site.text, &name).map(|i| s.start + i..s.start + i + name.len())
+                });
+                let what = match site.context {
+                    Context::Param(_) | Context::Operator => "no parameter",
+                    Context::Primitive(_) | Context::Condition(_) => {
+                        "no parameter or element property"
+                    }
+                };
+                let help = match site.context {
+                    Context::Primitive(d) | Context::Condition(d)
+                        if [Domain::Vert, Domain::Edge, Domain::Face]
+                            .iter()
+                            .any(|&other| property_for(other, &name).is_some()) =>
+                    {
+                        Some(format!(
+                            "`{name}` is a property of other elements, not of {}s",
+                            d
+                        ))
+                    }
+                    Context::Param(_) | Context::Operator
+                        if [Domain::Vert, Domain::Edge, Domain::Face]
+                            .iter()
+                            .any(|&d| property_for(d, &name).is_some()) =>
+                    {
+                        Some("element properties are only available in conditions and G³ command values".to_owned())
+                    }
+                    _ if !self.params.is_empty() => {
+                        Some(match compile::closest_in(&name, &self.params) {
+                            Some(i) => format!("did you mean `{}`?", self.params[i]),
+                            None => format!("parameters: {}", self.params.join(", ")),
+                        })
+                    }
+                    _ => Some("declare it under [params]".to_owned()),
+                };
+                out.push(self.finding(
+                    Severity::Error,
+                    "undefined-name",
+                    span.as_ref(),
+                    format!("`{name}` is {what}"),
+                    help,
+                ));
+            }
+        }
+        out
+    }
+
+    fn unused_params(&self, sites: &[Site], out: &mut Vec<Finding>) {
+        let n = self.params.len();
+        let mut deps: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
+        let mut used = vec![false; n];
+        let mut stack: Vec<usize> = Vec::new();
+        for site in sites {
+            let (_, _, reads) = self.compile_site(site);
+            match site.context {
+                Context::Param(p) => deps[p].extend(reads),
+                _ => stack.extend(reads),
+            }
+        }
+        while let Some(p) = stack.pop() {
+            if !std::mem::replace(&mut used[p], true) {
+                stack.extend(deps[p].iter().copied());
+            }
+        }
+        for (name, _) in &self.ast.params.0 {
+            let Some(slot) = self.params.iter().position(|p| *p == name.value) else {
+                continue;
+            };
+            if !used[slot] {
+                out.push(self.finding(
+                    Severity::Warning,
+                    "unused-param",
+                    self.key_span(name, &name.value).as_ref(),
+                    format!("parameter `{}` is never used", name.value),
+                    Some("remove it, or use it in an expression".to_owned()),
+                ));
+            }
+        }
+    }
+
+    fn unused_definitions(&self, out: &mut Vec<Finding>) {
+        let rules = &self.ast.rules.0;
+        let compounds = &self.ast.compound.0;
+        let mut rule_used = vec![false; rules.len()];
+        let mut compound_used = vec![false; compounds.len()];
+        let mut stack: Vec<&ast::Step> = Vec::new();
+        stack.extend(&self.ast.start);
+        stack.extend(&self.ast.steps);
+        while let Some(step) = stack.pop() {
+            if let Some(rule) = &step.rule {
+                if let Some(i) = rules.iter().position(|(n, _)| n.value == rule.value) {
+                    if !std::mem::replace(&mut rule_used[i], true) {
+                        stack.extend(&rules[i].1.steps);
+                    }
+                }
+            }
+            if let Some((_, call)) = &step.compound {
+                if let Some(i) = compounds
+                    .iter()
+                    .position(|(n, _)| n.value == call.value.name.value)
+                {
+                    if !std::mem::replace(&mut compound_used[i], true) {
+                        stack.extend(&compounds[i].1.steps);
+                    }
+                }
+            }
+        }
+        for (i, (name, _)) in rules.iter().enumerate() {
+            if !rule_used[i] {
+                out.push(self.finding(
+                    Severity::Warning,
+                    "unused-rule",
+                    self.key_span(name, &name.value).as_ref(),
+                    format!("rule `{}` is never included", name.value),
+                    Some(format!(
+                        "include it with a step `rule = \"{}\"`, or remove it",
+                        name.value
+                    )),
+                ));
+            }
+        }
+        for (i, (name, _)) in compounds.iter().enumerate() {
+            if !compound_used[i] {
+                out.push(self.finding(
+                    Severity::Warning,
+                    "unused-compound",
+                    self.key_span(name, &name.value).as_ref(),
+                    format!("compound `{}` is never called", name.value),
+                    Some(format!(
+                        "apply it with a step `compound = \"{}\"`, or remove it",
+                        name.value
+                    )),
+                ));
+            }
+        }
+    }
+
+    // ---- conditions and probabilities ----------------------------------------
+
+    fn conditions(&self, sites: &[Site], program: &Program, out: &mut Vec<Finding>) {
+        let base = self.params.len();
+        // Parameters in conditions: any finite number (`--set` may change them).
+        let mut any_params = vec![Range::finite(); base + PROPERTY_SLOTS];
+        let mut integer = vec![false; base + PROPERTY_SLOTS];
+        for k in 0..PROPERTY_SLOTS {
+            let (range, int) = property_range(property_from_index(k as u32));
+            any_params[base + k] = range;
+            integer[base + k] = int;
+        }
+        // Parameters in probabilities: the ranges their definitions allow.
+        let mut defined = any_params.clone();
+        let analysis = Analysis { integer: &integer };
+        for p in &program.params {
+            let slot = p.slot as usize;
+            if slot < base {
+                defined[slot] = param_range(&analysis, p, &defined);
+            }
+        }
+        for site in sites {
+            let (Some(expr), _, _) = self.compile_site(site) else {
+                continue;
+            };
+            let tree = expr.tree();
+            match (site.context, site.key) {
+                (Context::Primitive(_), "probability") => {
+                    let r = analysis.eval(&tree, &defined);
+                    let outside = r.nan || r.lo < 0.0 || r.hi > 1.0;
+                    if outside {
+                        let never_inside = !r.nan && (r.hi < 0.0 || r.lo > 1.0);
+                        out.push(self.finding(
+                            Severity::Warning,
+                            "probability-range",
+                            site.span.as_ref(),
+                            format!(
+                                "`probability` {} outside [0, 1]: it ranges over {} with the file's parameter values",
+                                if never_inside { "is always" } else { "can be" },
+                                r
+                            ),
+                            Some("the run stops with an error when a probability leaves [0, 1]; clamp it, e.g. `clamp(…, 0, 1)`".to_owned()),
+                        ));
+                    }
+                }
+                (Context::Condition(_), key) => {
+                    let r = analysis.eval(&tree, &any_params);
+                    let (can_false, can_true) = r.truth();
+                    let what = match key {
+                        "nodes" => "`nodes` condition",
+                        _ => "`select` condition",
+                    };
+                    let ranges = used_ranges(&expr, base, &any_params, &integer);
+                    if !can_true {
+                        out.push(self.finding(
+                            Severity::Warning,
+                            "never-true",
+                            site.span.as_ref(),
+                            format!(
+                                "{what} `{}` can never be true: nothing will match",
+                                site.text
+                            ),
+                            ranges.or(Some("its comparisons contradict each other".to_owned())),
+                        ));
+                    } else if !can_false {
+                        out.push(self.finding(
+                            Severity::Warning,
+                            "always-true",
+                            site.span.as_ref(),
+                            format!(
+                                "{what} `{}` is always true: it selects nothing out",
+                                site.text
+                            ),
+                            ranges.or(Some("remove it".to_owned())),
+                        ));
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+/// Byte offset of `name` as a whole name in an expression's text.
+fn name_offset(text: &str, name: &str) -> Option<usize> {
+    let bytes = text.as_bytes();
+    let is_name = |b: u8| b.is_ascii_alphanumeric() || b == b'_' || b == b'.';
+    let mut start = 0;
+    while let Some(i) = text[start..].find(name) {
+        let at = start + i;
+        let end = at + name.len();
+        let before = at == 0 || !is_name(bytes[at - 1]);
+        let after = end >= bytes.len() || !is_name(bytes[end]);
+        if before && after {
+            return Some(at);
+        }
+        start = at + 1;
+    }
+    None
+}
+
+/// "ranges assumed: normal.z in [-1, 1], …" for the properties an
+/// expression reads.
+fn used_ranges(expr: &Expr, base: usize, ranges: &[Range], integer: &[bool]) -> Option<String> {
+    let parts: Vec<String> = expr
+        .used_slots()
+        .iter()
+        .filter(|&&s| (s as usize) >= base && (s as usize) < ranges.len())
+        .filter(|&&s| ranges[s as usize] != Range::finite())
+        .map(|&s| {
+            let p = property_from_index(s - base as u32);
+            let name = property_name(p);
+            let r = ranges[s as usize];
+            let kind = if integer[s as usize] {
+                "an integer "
+            } else {
+                ""
+            };
+            format!("`{name}` is {kind}in {r}")
+        })
+        .collect();
+    (!parts.is_empty()).then(|| parts.join("; "))
+}
+
+/// The name a condition uses for a property.
+fn property_name(p: Property) -> String {
+    use Property::*;
+    let axis = |i: usize| ["x", "y", "z"][i.min(2)];
+    match p {
+        Id => "id".into(),
+        Random => "random".into(),
+        Position(i) => format!("pos.{}", axis(i)),
+        Center(i) => format!("center.{}", axis(i)),
+        Normal(i) => format!("normal.{}", axis(i)),
+        Min(i) => format!("min.{}", axis(i)),
+        Max(i) => format!("max.{}", axis(i)),
+        Direction(i) => format!("dir.{}", axis(i)),
+        PrePosition(i) => format!("pre.{}", axis(i)),
+        PostPosition(i) => format!("post.{}", axis(i)),
+        Relative(i) => format!("rel.{}", axis(i)),
+        RelativeLength => "rel.length".into(),
+        RelativeArea => "rel.area".into(),
+        Age => "age".into(),
+        Generation => "generation".into(),
+        Radius => "radius".into(),
+        OutEdges => "out_edges".into(),
+        InEdges => "in_edges".into(),
+        EdgeNeighborEdges | EdgeNeighbors => "neighbors".into(),
+        PreLength => "pre.length".into(),
+        Length => "length".into(),
+        Area => "area".into(),
+        Sides => "sides".into(),
+        Degree => "degree".into(),
+        FaceCount => "faces".into(),
+        VertNeighbors => "vert_neighbors".into(),
+    }
+}
+
+/// The values a property can take, and whether it is an integer.
+fn property_range(p: Property) -> (Range, bool) {
+    use Property::*;
+    let nonneg = Range::new(0.0, f64::INFINITY);
+    match p {
+        Id | Degree | FaceCount | EdgeNeighbors | VertNeighbors | OutEdges | InEdges
+        | EdgeNeighborEdges | Age => (nonneg, true),
+        Sides => (Range::new(3.0, f64::INFINITY), true),
+        Generation => (Range::new(1.0, f64::INFINITY), true),
+        Random => (Range::new(0.0, next_down(1.0)), false),
+        Length | Area | PreLength | RelativeLength | RelativeArea => (nonneg, false),
+        Normal(_) | Direction(_) => (Range::new(-1.0, 1.0), false),
+        _ => (Range::finite(), false),
+    }
+}
+
+/// The values a parameter's definition allows (overrides included).
+fn param_range(a: &Analysis, p: &super::program::Param, env: &[Range]) -> Range {
+    let e = |x: &Expr| a.eval(&x.tree(), env);
+    let r = match &p.kind {
+        ParamKind::Expr(x) => e(x),
+        ParamKind::Uniform { low, high } => e(low).hull(e(high)),
+        ParamKind::Normal { .. } => Range::finite(),
+        ParamKind::Int { low, high } => {
+            let r = e(low).hull(e(high));
+            Range::new(libm::round(r.lo), libm::round(r.hi))
+        }
+        ParamKind::Choice { values, .. } => values
+            .iter()
+            .map(e)
+            .reduce(Range::hull)
+            .unwrap_or(Range::finite()),
+    };
+    let r = match &p.clamp {
+        Some((lo, hi)) => binary(Binary::Min, binary(Binary::Max, r, e(lo)), e(hi)),
+        None => r,
+    };
+    // The engine stops on a non-finite parameter, so a running one is finite.
+    Range {
+        lo: r.lo.max(f64::MIN),
+        hi: r.hi.min(f64::MAX),
+        nan: false,
+    }
+}
+
+// ---- interval arithmetic -------------------------------------------------------
+
+/// A set of values: the reals in [lo, hi] (empty when lo > hi), and NaN when
+/// `nan`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Range {
+    lo: f64,
+    hi: f64,
+    nan: bool,
+}
+
+impl std::fmt::Display for Range {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let bound = |x: f64| {
+            if x == f64::INFINITY {
+                "∞".to_owned()
+            } else if x == f64::NEG_INFINITY {
+                "−∞".to_owned()
+            } else if x == f64::MAX {
+                "max".to_owned()
+            } else if x == f64::MIN {
+                "−max".to_owned()
+            } else if x < 1.0 && x > 0.999_999 {
+                "1)".to_owned()
+            } else {
+                format!("{x}")
+            }
+        };
+        if self.is_empty() {
+            return f.write_str(if self.nan { "{NaN}" } else { "{}" });
+        }
+        let hi = bound(self.hi);
+        if hi.ends_with(')') {
+            write!(f, "[{}, {hi}", bound(self.lo))
+        } else {
+            write!(f, "[{}, {hi}]", bound(self.lo))
+        }
+    }
+}
+
+impl Range {
+    fn new(lo: f64, hi: f64) -> Range {
+        Range { lo, hi, nan: false }
+    }
+
+    fn all() -> Range {
+        Range {
+            lo: f64::NEG_INFINITY,
+            hi: f64::INFINITY,
+            nan: true,
+        }
+    }
+
+    /// Any finite value (parameters, positions).
+    fn finite() -> Range {
+        Range::new(f64::MIN, f64::MAX)
+    }
+
+    fn point(x: f64) -> Range {
+        if x.is_nan() {
+            Range {
+                lo: f64::INFINITY,
+                hi: f64::NEG_INFINITY,
+                nan: true,
+            }
+        } else {
+            Range::new(x, x)
+        }
+    }
+
+    fn boolean(can_false: bool, can_true: bool) -> Range {
+        match (can_false, can_true) {
+            (true, true) => Range::new(0.0, 1.0),
+            (true, false) => Range::point(0.0),
+            (false, true) => Range::point(1.0),
+            (false, false) => Range {
+                lo: f64::INFINITY,
+                hi: f64::NEG_INFINITY,
+                nan: false,
+            },
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.lo > self.hi
+    }
+
+    fn contains(&self, x: f64) -> bool {
+        self.lo <= x && x <= self.hi
+    }
+
+    /// (can be false, can be true) as a condition: zero is false, anything
+    /// else (NaN included) true.
+    fn truth(&self) -> (bool, bool) {
+        let can_false = self.contains(0.0);
+        let can_true = self.nan || (!self.is_empty() && (self.lo != 0.0 || self.hi != 0.0));
+        (can_false, can_true)
+    }
+
+    fn hull(self, other: Range) -> Range {
+        Range {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+            nan: self.nan || other.nan,
+        }
+    }
+
+    fn intersect(self, other: Range) -> Range {
+        Range {
+            lo: self.lo.max(other.lo),
+            hi: self.hi.min(other.hi),
+            nan: self.nan && other.nan,
+        }
+    }
+
+    /// A range from endpoint candidates; NaN among them means anything.
+    fn from_candidates(candidates: &[f64], nan: bool) -> Range {
+        if candidates.iter().any(|c| c.is_nan()) {
+            return Range::all();
+        }
+        let lo = candidates.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = candidates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        Range { lo, hi, nan }
+    }
+
+    /// Applies a non-decreasing function.
+    fn monotone(self, f: impl Fn(f64) -> f64) -> Range {
+        if self.is_empty() {
+            return self;
+        }
+        Range::from_candidates(&[f(self.lo), f(self.hi)], self.nan)
+    }
+
+    fn infinite(&self) -> bool {
+        self.lo == f64::NEG_INFINITY || self.hi == f64::INFINITY
+    }
+}
+
+fn next_up(x: f64) -> f64 {
+    if x.is_nan() || x == f64::INFINITY {
+        return x;
+    }
+    if x == 0.0 {
+        return f64::from_bits(1);
+    }
+    let bits = x.to_bits();
+    f64::from_bits(if x > 0.0 { bits + 1 } else { bits - 1 })
+}
+
+fn next_down(x: f64) -> f64 {
+    -next_up(-x)
+}
+
+fn unary(f: Unary, x: Range) -> Range {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    if x.is_empty() && !matches!(f, Unary::Not | Unary::Truthy) {
+        return x;
+    }
+    let nan_if = |cond: bool| x.nan || cond;
+    match f {
+        Unary::Neg => Range {
+            lo: -x.hi,
+            hi: -x.lo,
+            nan: x.nan,
+        },
+        Unary::Not => {
+            let (can_false, can_true) = x.truth();
+            Range::boolean(can_true, can_false)
+        }
+        Unary::Truthy => {
+            let (can_false, can_true) = x.truth();
+            Range::boolean(can_false, can_true)
+        }
+        Unary::Abs => {
+            if x.lo >= 0.0 {
+                x
+            } else if x.hi <= 0.0 {
+                unary(Unary::Neg, x)
+            } else {
+                Range {
+                    lo: 0.0,
+                    hi: (-x.lo).max(x.hi),
+                    nan: x.nan,
+                }
+            }
+        }
+        Unary::Sqrt => {
+            let real = Range::new(x.lo.max(0.0), x.hi).monotone(libm::sqrt);
+            Range {
+                nan: nan_if(x.lo < 0.0),
+                ..real
+            }
+        }
+        Unary::Ln | Unary::Log10 => {
+            let g = if f == Unary::Ln {
+                libm::log
+            } else {
+                libm::log10
+            };
+            let real = Range::new(x.lo.max(0.0), x.hi).monotone(g);
+            Range {
+                nan: nan_if(x.lo < 0.0),
+                ..real
+            }
+        }
+        Unary::Exp
+        | Unary::Floor
+        | Unary::Ceil
+        | Unary::Round
+        | Unary::Sign
+        | Unary::Atan
+        | Unary::Radians
+        | Unary::Degrees => x.monotone(|v| f.apply(v)),
+        Unary::Sin | Unary::Cos => Range {
+            lo: -1.0,
+            hi: 1.0,
+            nan: nan_if(x.infinite()),
+        },
+        Unary::Asin => Range {
+            lo: -FRAC_PI_2,
+            hi: FRAC_PI_2,
+            nan: nan_if(x.lo < -1.0 || x.hi > 1.0),
+        },
+        Unary::Acos => Range {
+            lo: 0.0,
+            hi: PI,
+            nan: nan_if(x.lo < -1.0 || x.hi > 1.0),
+        },
+        Unary::Tan => Range::all(),
+    }
+}
+
+fn binary(f: Binary, a: Range, b: Range) -> Range {
+    use std::f64::consts::PI;
+    let nan = a.nan || b.nan;
+    let compare = |can_true: bool, can_false: bool, nan_result: bool| {
+        // A NaN operand makes every comparison false (and `!=` true).
+        let (mut can_false, mut can_true) = (can_false, can_true);
+        if nan {
+            if nan_result {
+                can_true = true;
+            } else {
+                can_false = true;
+            }
+        }
+        Range::boolean(can_false, can_true)
+    };
+    let empty = a.is_empty() || b.is_empty();
+    match f {
+        Binary::Lt | Binary::Le | Binary::Gt | Binary::Ge | Binary::Eq | Binary::Ne if empty => {
+            compare(false, false, f == Binary::Ne)
+        }
+        Binary::Lt => compare(a.lo < b.hi, a.hi >= b.lo, false),
+        Binary::Le => compare(a.lo <= b.hi, a.hi > b.lo, false),
+        Binary::Gt => compare(a.hi > b.lo, a.lo <= b.hi, false),
+        Binary::Ge => compare(a.hi >= b.lo, a.lo < b.hi, false),
+        Binary::Eq => {
+            let overlap = a.lo <= b.hi && b.lo <= a.hi;
+            let always = a.lo == a.hi && b.lo == b.hi && a.lo == b.lo;
+            compare(overlap, !always, false)
+        }
+        Binary::Ne => {
+            let overlap = a.lo <= b.hi && b.lo <= a.hi;
+            let always = a.lo == a.hi && b.lo == b.hi && a.lo == b.lo;
+            compare(!always, overlap, true)
+        }
+        Binary::Step => binary(Binary::Ge, b, a),
+        Binary::Min | Binary::Max => {
+            // fmin/fmax ignore a NaN operand.
+            let g = if f == Binary::Min { f64::min } else { f64::max };
+            if a.is_empty() {
+                return Range {
+                    nan: a.nan && b.nan,
+                    ..b
+                };
+            }
+            if b.is_empty() {
+                return Range {
+                    nan: a.nan && b.nan,
+                    ..a
+                };
+            }
+            let mut r = Range {
+                lo: g(a.lo, b.lo),
+                hi: g(a.hi, b.hi),
+                nan: a.nan && b.nan,
+            };
+            if a.nan {
+                r = r.hull(Range::new(b.lo, b.hi));
+            }
+            if b.nan {
+                r = r.hull(Range::new(a.lo, a.hi));
+            }
+            r
+        }
+        _ if empty => Range {
+            lo: f64::INFINITY,
+            hi: f64::NEG_INFINITY,
+            nan: true,
+        },
+        Binary::Add => Range::from_candidates(&[a.lo + b.lo, a.hi + b.hi], nan),
+        Binary::Sub => Range::from_candidates(&[a.lo - b.hi, a.hi - b.lo], nan),
+        Binary::Mul => {
+            Range::from_candidates(&[a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi], nan)
+        }
+        Binary::Div => {
+            if b.contains(0.0) || b.infinite() || a.infinite() {
+                Range::all()
+            } else {
+                Range::from_candidates(&[a.lo / b.lo, a.lo / b.hi, a.hi / b.lo, a.hi / b.hi], nan)
+            }
+        }
+        Binary::Rem => {
+            let nan = nan || a.infinite();
+            if b.lo > 0.0 {
+                Range {
+                    lo: 0.0,
+                    hi: b.hi,
+                    nan,
+                }
+            } else if b.hi < 0.0 {
+                Range {
+                    lo: b.lo,
+                    hi: 0.0,
+                    nan,
+                }
+            } else {
+                Range::all()
+            }
+        }
+        Binary::Pow => {
+            let n = b.lo;
+            if b.lo == b.hi && n.fract() == 0.0 && (1.0..=64.0).contains(&n) && !b.nan {
+                if n % 2.0 == 0.0 {
+                    unary(Unary::Abs, a).monotone(|v| libm::pow(v, n))
+                } else {
+                    a.monotone(|v| libm::pow(v, n))
+                }
+            } else {
+                Range::all()
+            }
+        }
+        Binary::Atan2 => Range {
+            lo: -PI,
+            hi: PI,
+            nan,
+        },
+    }
+}
+
+fn ternary(f: Ternary, a: Range, b: Range, c: Range) -> Range {
+    match f {
+        Ternary::Clamp => binary(Binary::Min, binary(Binary::Max, a, b), c),
+        Ternary::Lerp => binary(
+            Binary::Add,
+            a,
+            binary(Binary::Mul, binary(Binary::Sub, b, a), c),
+        ),
+        Ternary::Smoothstep => Range {
+            lo: 0.0,
+            hi: 1.0,
+            nan: a.nan || b.nan || c.nan || a.infinite() || b.infinite() || c.infinite(),
+        },
+    }
+}
+
+/// Interval evaluation of expression trees, narrowing compared slots
+/// through `&&` and `||`.
+struct Analysis<'i> {
+    /// Slots holding integers.
+    integer: &'i [bool],
+}
+
+impl Analysis<'_> {
+    fn eval(&self, t: &Tree, env: &[Range]) -> Range {
+        match t {
+            Tree::Const(v) => Range::point(*v),
+            Tree::Slot(s) => env.get(*s as usize).copied().unwrap_or(Range::all()),
+            Tree::Unary(f, x) => unary(*f, self.eval(x, env)),
+            Tree::Binary(f, a, b) => {
+                let r = binary(*f, self.eval(a, env), self.eval(b, env));
+                let compares_slot = matches!(**a, Tree::Slot(_)) || matches!(**b, Tree::Slot(_));
+                if negate(*f).is_none() || !compares_slot {
+                    return r;
+                }
+                // Integer slots: `n > 2 && n < 3`, `n == 0.5`.
+                let (mut can_false, mut can_true) = r.truth();
+                can_true = can_true && self.compare(*f, a, b, true, env).is_some();
+                can_false = can_false && self.compare(*f, a, b, false, env).is_some();
+                Range::boolean(can_false, can_true)
+            }
+            Tree::Ternary(f, a, b, c) => {
+                ternary(*f, self.eval(a, env), self.eval(b, env), self.eval(c, env))
+            }
+            Tree::And(a, b) | Tree::Or(a, b) => {
+                let and = matches!(t, Tree::And(..));
+                let (a_false, a_true) = self.eval(a, env).truth();
+                // `&&`: false when the left is; else the right decides.
+                let (decides, goes_on) = if and {
+                    (a_false, a_true)
+                } else {
+                    (a_true, a_false)
+                };
+                let (mut can_false, mut can_true) = if and {
+                    (decides, false)
+                } else {
+                    (false, decides)
+                };
+                if goes_on {
+                    for narrowed in self.assume(a, and, env) {
+                        let (b_false, b_true) = self.eval(b, &narrowed).truth();
+                        can_false |= b_false;
+                        can_true |= b_true;
+                    }
+                }
+                Range::boolean(can_false, can_true)
+            }
+        }
+    }
+
+    /// The slot ranges left when `t`'s truth is `truth`: a union of boxes
+    /// (empty when it cannot be), so `(x > 1 || x < -1)` keeps both sides.
+    fn assume(&self, t: &Tree, truth: bool, env: &[Range]) -> Vec<Vec<Range>> {
+        let (can_false, can_true) = self.eval(t, env).truth();
+        if (truth && !can_true) || (!truth && !can_false) {
+            return Vec::new();
+        }
+        let boxes = match t {
+            Tree::And(a, b) | Tree::Or(a, b) => {
+                let and = matches!(t, Tree::And(..));
+                let mut out = Vec::new();
+                if and == truth {
+                    // Both sides hold `truth`.
+                    for narrowed in self.assume(a, truth, env) {
+                        out.extend(self.assume(b, truth, &narrowed));
+                    }
+                } else {
+                    // The left alone, or the left not and the right.
+                    out.extend(self.assume(a, truth, env));
+                    for narrowed in self.assume(a, !truth, env) {
+                        out.extend(self.assume(b, truth, &narrowed));
+                    }
+                }
+                out
+            }
+            Tree::Unary(Unary::Not, x) => self.assume(x, !truth, env),
+            Tree::Unary(Unary::Truthy, x) => self.assume(x, truth, env),
+            Tree::Binary(f, a, b) => self.compare(*f, a, b, truth, env).into_iter().collect(),
+            _ => vec![env.to_vec()],
+        };
+        if boxes.len() <= MAX_BOXES {
+            return boxes;
+        }
+        let hull = boxes
+            .into_iter()
+            .reduce(|a, b| a.iter().zip(&b).map(|(x, y)| x.hull(*y)).collect())
+            .expect("more than MAX_BOXES");
+        vec![hull]
+    }
+
+    /// The slot ranges left when comparison `a f b` has value `truth`
+    /// (unchanged unless it compares a slot); `None` when it cannot.
+    fn compare(
+        &self,
+        f: Binary,
+        a: &Tree,
+        b: &Tree,
+        truth: bool,
+        env: &[Range],
+    ) -> Option<Vec<Range>> {
+        let op = if truth { Some(f) } else { negate(f) };
+        let mut out = env.to_vec();
+        let Some(op) = op else {
+            return Some(out);
+        };
+        if let Tree::Slot(s) = *a {
+            let bound = self.eval(b, env);
+            // A NaN makes a comparison false whatever the slot holds.
+            if truth || !bound.nan {
+                self.narrow(&mut out, s as usize, op, bound)?;
+            }
+        }
+        if let Tree::Slot(s) = *b {
+            let bound = self.eval(a, env);
+            if let (Some(mirrored), true) = (mirror(op), truth || !bound.nan) {
+                self.narrow(&mut out, s as usize, mirrored, bound)?;
+            }
+        }
+        Some(out)
+    }
+
+    /// Narrows slot `s` to the values `x` with `x op bound` for some value
+    /// of `bound`; `None` when none is left.
+    fn narrow(&self, env: &mut [Range], s: usize, op: Binary, bound: Range) -> Option<()> {
+        let Some(current) = env.get(s).copied() else {
+            return Some(());
+        };
+        if bound.is_empty() {
+            return Some(());
+        }
+        let allowed = match op {
+            Binary::Lt => Range::new(f64::NEG_INFINITY, next_down(bound.hi)),
+            Binary::Le => Range::new(f64::NEG_INFINITY, bound.hi),
+            Binary::Gt => Range::new(next_up(bound.lo), f64::INFINITY),
+            Binary::Ge => Range::new(bound.lo, f64::INFINITY),
+            Binary::Eq => Range::new(bound.lo, bound.hi),
+            _ => return Some(()),
+        };
+        let mut r = current.intersect(allowed);
+        r.nan = false;
+        if self.integer.get(s).copied().unwrap_or(false) {
+            r.lo = r.lo.ceil();
+            r.hi = r.hi.floor();
+        }
+        if r.is_empty() {
+            return None;
+        }
+        env[s] = r;
+        Some(())
+    }
+}
+
+/// Most boxes [`Analysis::assume`] keeps apart before joining them.
+const MAX_BOXES: usize = 16;
+
+/// The comparison that holds when `f` does not (slots are never NaN).
+fn negate(f: Binary) -> Option<Binary> {
+    Some(match f {
+        Binary::Lt => Binary::Ge,
+        Binary::Le => Binary::Gt,
+        Binary::Gt => Binary::Le,
+        Binary::Ge => Binary::Lt,
+        Binary::Eq => Binary::Ne,
+        Binary::Ne => Binary::Eq,
+        _ => return None,
+    })
+}
+
+/// `b op' a` equivalent to `a op b`.
+fn mirror(f: Binary) -> Option<Binary> {
+    Some(match f {
+        Binary::Lt => Binary::Gt,
+        Binary::Le => Binary::Ge,
+        Binary::Gt => Binary::Lt,
+        Binary::Ge => Binary::Le,
+        Binary::Eq => Binary::Eq,
+        Binary::Ne => Binary::Ne,
+        _ => return None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rules::expr::SlotNames;
+
+    /// (can be false, can be true) of `source` over x (any finite), n (an
+    /// integer ≥ 0), r in [0, 1) and c in [−1, 1].
+    fn truth(source: &str) -> (bool, bool) {
+        let names = SlotNames(&["x", "n", "r", "c"]);
+        let expr = Expr::compile(source, &names).unwrap();
+        let env = [
+            Range::finite(),
+            Range::new(0.0, f64::INFINITY),
+            Range::new(0.0, next_down(1.0)),
+            Range::new(-1.0, 1.0),
+        ];
+        let integer = [false, true, false, false];
+        Analysis { integer: &integer }
+            .eval(&expr.tree(), &env)
+            .truth()
+    }
+
+    #[test]
+    fn impossible_conditions_are_never_true() {
+        for source in [
+            "x > 1 && x < 0",
+            "x >= 1 && x < 1",
+            "n < 0",
+            "r >= 1",
+            "r > 1",
+            "c > 1",
+            "abs(x) < 0",
+            "n > 2 && n < 3",
+            "!(x < 1) && x < 0",
+            "(x > 1 || x < -1) && abs(x) < 0.5",
+            "1 < 0",
+            "x < 0 && (c > 2 || x > 5)",
+            "sqrt(abs(x)) < 0",
+            "sin(x) > 1",
+            "n == 0.5",
+            "false",
+        ] {
+            assert!(!truth(source).1, "{source} can be true");
+        }
+    }
+
+    #[test]
+    fn possible_conditions_are_not_flagged() {
+        for source in [
+            "x > 1 || x < 0",
+            "x > 1 && x < 2",
+            "n == 8",
+            "r < 0.5",
+            "abs(c - 0.5) < 0.1",
+            "n > 2 && n < 4",
+            "!(c < -0.5 && abs(x - 0.5) < 0.1)",
+            "x == 0",
+            "x / x",
+            "ln(x) < 0 || ln(x) >= 0",
+            "x % 2 == 1",
+            "n - 3 == 0",
+            "x ^ 2 < 1",
+        ] {
+            assert!(truth(source).1, "{source} is flagged as never true");
+        }
+    }
+
+    #[test]
+    fn tautologies_are_always_true() {
+        for source in [
+            "r < 1",
+            "n >= 0",
+            "c <= 1 && c >= -1",
+            "x > 1 || x <= 1",
+            "abs(x) >= 0",
+        ] {
+            assert_eq!(truth(source), (false, true), "{source}");
+        }
+        assert_eq!(truth("x > 1 || x < 1"), (true, true));
+    }
+}

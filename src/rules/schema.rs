@@ -1,0 +1,789 @@
+//! The JSON Schema (draft-07) of rule files, for editors (`graftal schema`,
+//! committed as `docs/graftal.schema.json`), and the conversion of a rule
+//! file, TOML or RON, to the JSON value the schema describes.
+//!
+//! The schema is written here by hand, in one place, from the same lists the
+//! parser uses ([`ast::OPERATOR_NAMES`], [`ast::COMMAND_NAMES`]); the AST's
+//! hand-written deserializers (a step's operator is whichever operator key
+//! it holds) leave nothing to derive it from. `tests/tooling.rs` keeps it in
+//! step with the parser and compiler: every file in `rules/` validates, and
+//! for every operator, `on` value and step key the schema accepts exactly the
+//! steps `graftal check` accepts.
+//!
+//! What the schema cannot say (names that must resolve — parameters,
+//! rules, compounds, `from` — expressions, and `on` for compound calls) is
+//! left to `graftal check` and `graftal lint`.
+
+use std::path::Path;
+
+use serde_json::{json, Map, Value};
+
+use super::ast::{COMMAND_NAMES, OPERATOR_NAMES};
+use super::compile::{format_of, load_text};
+use super::diagnostic::RuleError;
+use super::spanned::SourceFormat;
+
+/// Operators that make a shape from nothing (allowed in `[start]`).
+const CREATE_OPS: &[&str] = &[
+    "vertex",
+    "circle",
+    "grid",
+    "cube",
+    "uv_sphere",
+    "cylinder",
+    "cone",
+    "import",
+];
+
+/// Names parameters may not take (element properties and constants).
+const RESERVED: &[&str] = &[
+    "id",
+    "random",
+    "length",
+    "area",
+    "sides",
+    "degree",
+    "edges",
+    "faces",
+    "neighbors",
+    "vert_neighbors",
+    "age",
+    "generation",
+    "radius",
+    "out_edges",
+    "in_edges",
+    "pi",
+    "tau",
+    "e",
+    "true",
+    "false",
+];
+
+/// Element kinds an operator's `on` may name; the first is the default
+/// (mirrors the compiler's rule, checked against it by the tests).
+fn allowed_on(op: &str) -> &'static [&'static str] {
+    match op {
+        "translate" | "rotate" | "scale" | "merge" | "extrude_verts" => {
+            &["verts", "edges", "faces"]
+        }
+        "extrude_edges" | "split_edges" | "dissolve_edges" | "make_face" => &["edges", "faces"],
+        "delete" | "duplicate" | "mirror" => &["faces", "edges", "verts"],
+        "create_edge" | "edit_node" => &["verts"],
+        "split_edge" | "create_face" => &["edges"],
+        _ => &["faces"],
+    }
+}
+
+fn describe(mut schema: Value, text: &str) -> Value {
+    if let Value::Object(map) = &mut schema {
+        map.insert("description".into(), Value::String(text.into()));
+    }
+    schema
+}
+
+fn r(def: &str) -> Value {
+    json!({ "$ref": format!("#/definitions/{def}") })
+}
+
+fn value(text: &str) -> Value {
+    describe(r("value"), text)
+}
+
+fn vector(text: &str) -> Value {
+    describe(r("vector"), text)
+}
+
+fn boolean(text: &str) -> Value {
+    json!({ "type": "boolean", "description": text })
+}
+
+fn object(properties: Vec<(&str, Value)>, required: &[&str]) -> Value {
+    let mut props = Map::new();
+    for (k, v) in properties {
+        props.insert(k.into(), v);
+    }
+    let mut o = json!({ "type": "object", "properties": props, "additionalProperties": false });
+    if !required.is_empty() {
+        o["required"] = json!(required);
+    }
+    o
+}
+
+fn extrude() -> Value {
+    let mut o = object(
+        vec![
+            ("offset", vector("move the extruded copy by this vector")),
+            ("distance", value("or move it this far along the normal")),
+            (
+                "keep_original",
+                boolean("faces: keep the original face, flipped, closing the prism (false)"),
+            ),
+        ],
+        &[],
+    );
+    o["not"] = json!({ "required": ["offset", "distance"] });
+    o
+}
+
+fn command(name: &str) -> Value {
+    let mut props = vec![
+        ("length", value("l: length of the new edge or displacement (relative: times the preceding primitive's length)")),
+        ("radius", value("radius of the new node (default: the preceding primitive's)")),
+        ("heading", vector("H as [x, y, z] in the reference or preceding frame's (H, L, U) basis")),
+        ("up", vector("U as [x, y, z]; L = U × H")),
+        ("roll", value("fixed rotation about H, degrees")),
+        ("turn", value("fixed rotation about U, degrees")),
+        ("pitch", value("fixed rotation about L, degrees")),
+        ("vary_length", r("spread")),
+        ("vary_radius", r("spread")),
+        ("vary_roll", r("spread")),
+        ("vary_turn", r("spread")),
+        ("vary_pitch", r("spread")),
+        ("probability", describe(json!({ "anyOf": [
+            { "type": "number", "minimum": 0, "maximum": 1 },
+            { "type": "string", "minLength": 1 } ] }),
+            "chance of applying to each matched primitive, in [0, 1] (default 1)")),
+        ("relative", boolean("relative to the preceding primitive instead of the reference frame")),
+    ];
+    if name == "split_face" {
+        props.push((
+            "nodes",
+            describe(
+                r("condition"),
+                "secondary condition over the face's nodes: which to join to the new node",
+            ),
+        ));
+    }
+    object(props, &[])
+}
+
+/// The schema of an operator's value.
+fn operator(name: &str) -> Value {
+    let segments = || value("number of segments");
+    let radius = || value("radius");
+    match name {
+        "vertex" => object(
+            vec![
+                ("at", vector("position ([0, 0, 0])")),
+                ("radius", value("node radius")),
+            ],
+            &[],
+        ),
+        "circle" => object(
+            vec![
+                ("segments", segments()),
+                ("radius", radius()),
+                ("fill", boolean("fill with a face (false)")),
+            ],
+            &[],
+        ),
+        "grid" => object(
+            vec![
+                ("segments", describe(r("pair"), "[nx, ny] quads ([1, 1])")),
+                (
+                    "size",
+                    describe(r("pair"), "[sx, sy] full extents ([2, 2])"),
+                ),
+            ],
+            &[],
+        ),
+        "cube" => object(vec![("size", value("edge length (2)"))], &[]),
+        "uv_sphere" => object(
+            vec![
+                ("segments", segments()),
+                ("rings", value("number of rings (16)")),
+                ("radius", radius()),
+            ],
+            &[],
+        ),
+        "cylinder" => object(
+            vec![
+                ("segments", segments()),
+                ("radius", radius()),
+                ("radius_top", value("top radius (= radius)")),
+                ("depth", value("height along z (2)")),
+                ("caps", boolean("close the ends (true)")),
+            ],
+            &[],
+        ),
+        "cone" => object(
+            vec![
+                ("segments", segments()),
+                ("radius", radius()),
+                ("depth", value("height along z (2)")),
+                ("caps", boolean("close the base (true)")),
+            ],
+            &[],
+        ),
+        "import" => object(
+            vec![(
+                "path",
+                json!({ "type": "string", "minLength": 1,
+                        "description": "OBJ, STL, glTF or GLB file, relative to the rule file" }),
+            )],
+            &["path"],
+        ),
+        "translate" => object(vec![("offset", vector("displacement"))], &["offset"]),
+        "rotate" => object(
+            vec![
+                ("angle", value("degrees, counter-clockwise about axis")),
+                ("axis", vector("rotation axis ([0, 0, 1])")),
+                ("center", vector("fixed point ([0, 0, 0])")),
+            ],
+            &["angle"],
+        ),
+        "scale" => object(
+            vec![
+                ("factor", vector("scale factors")),
+                ("center", vector("fixed point ([0, 0, 0])")),
+            ],
+            &["factor"],
+        ),
+        "extrude_verts" | "extrude_edges" | "extrude_faces" | "extrude_region" => extrude(),
+        "inset_faces" | "inset_region" => object(
+            vec![
+                ("thickness", value("inset width")),
+                ("depth", value("move the inner face along its normal (0)")),
+            ],
+            &["thickness"],
+        ),
+        "split_edges" => {
+            let mut o = object(
+                vec![
+                    ("cuts", value("equal parts (1 cut)")),
+                    (
+                        "ratios",
+                        json!({ "type": "array", "items": r("value"), "minItems": 1,
+                                "description": "cut positions in (0, 1), increasing, from the edge's first vertex" }),
+                    ),
+                ],
+                &[],
+            );
+            o["not"] = json!({ "required": ["cuts", "ratios"] });
+            o
+        }
+        "recompute_normals" => object(
+            vec![(
+                "outside",
+                boolean("make winding consistent and outward (true)"),
+            )],
+            &[],
+        ),
+        "delete" => object(
+            vec![(
+                "mode",
+                json!({ "enum": ["all", "faces", "faces_and_edges"],
+                        "description": "what goes with the elements (\"all\")" }),
+            )],
+            &[],
+        ),
+        "merge" => object(
+            vec![("distance", value("merge vertices within this distance"))],
+            &["distance"],
+        ),
+        "mirror" => {
+            let mut o = object(
+                vec![
+                    (
+                        "axis",
+                        json!({ "enum": ["x", "y", "z"], "description": "mirror across the plane perpendicular to this axis" }),
+                    ),
+                    ("normal", vector("or to this normal")),
+                    ("point", vector("a point of the plane ([0, 0, 0])")),
+                    ("merge_distance", value("weld distance at the seam (1e-6)")),
+                ],
+                &[],
+            );
+            o["not"] = json!({ "required": ["axis", "normal"] });
+            o
+        }
+        "region_extend" | "region_reduce" => object(
+            vec![(
+                "by",
+                json!({ "enum": ["edge", "vert"], "description": "adjacency (\"edge\")" }),
+            )],
+            &[],
+        ),
+        "skin" => object(
+            vec![
+                ("sides", value("sides of the tube cross-section (8)")),
+                ("radius", value("radius for nodes without one (0.1)")),
+                ("joints", boolean("spheres at joints (true)")),
+                ("keep_wires", boolean("keep the wire edges (false)")),
+            ],
+            &[],
+        ),
+        c if COMMAND_NAMES.contains(&c) => command(c),
+        // triangulate, reverse, duplicate, dissolve_edges, make_face
+        _ => object(vec![], &[]),
+    }
+}
+
+fn operator_description(name: &str) -> &'static str {
+    match name {
+        "vertex" => "create: one vertex (node)",
+        "circle" => "create: a circle in the XY plane",
+        "grid" => "create: a grid of quads in the XY plane",
+        "cube" => "create: a centred cube",
+        "uv_sphere" => "create: a UV sphere",
+        "cylinder" => "create: a cylinder along z",
+        "cone" => "create: a cone along z",
+        "import" => "create: a mesh from a file",
+        "translate" => "move the selected elements' vertices",
+        "rotate" => "rotate the selected elements' vertices",
+        "scale" => "scale the selected elements' vertices",
+        "extrude_verts" => "extrude vertices into edges",
+        "extrude_edges" => "extrude edges into faces",
+        "extrude_faces" => "extrude each face separately",
+        "extrude_region" => "extrude the faces as one region",
+        "inset_faces" => "inset each face separately",
+        "inset_region" => "inset the faces as one region",
+        "split_edges" => "split edges into parts",
+        "triangulate" => "triangulate faces",
+        "reverse" => "reverse face winding",
+        "recompute_normals" => "make winding consistent",
+        "delete" => "delete elements",
+        "duplicate" => "duplicate elements",
+        "dissolve_edges" => "join the two faces of each edge",
+        "make_face" => "make a face from a closed ring of edges",
+        "merge" => "merge vertices by distance",
+        "mirror" => "mirror across a plane, welding the seam",
+        "region_extend" => "grow the face selection",
+        "region_reduce" => "shrink the face selection",
+        "create_edge" => "G³: new node n₁ = n₀ + l·H and edge (n₀, n₁) on every matching node",
+        "split_edge" => "G³: split every matching edge at n₀ + l·H",
+        "create_face" => "G³: a triangle on every matching edge",
+        "split_face" => {
+            "G³: a fan from a new node at the barycentre (+ l·H) of every matching face"
+        }
+        "edit_node" => "G³: move every matching node by l·H, set its radius",
+        "skin" => "turn every wire edge into a tapered tube",
+        _ => "operator",
+    }
+}
+
+/// The schema of one step. `create` admits the create operators (not in
+/// compounds); `start` builds the `[start]` table instead (one create
+/// operator, optionally named).
+fn step(kind: StepKind) -> Value {
+    let mut props = Map::new();
+    props.insert(
+        "name".into(),
+        json!({ "type": "string", "pattern": "^[^/#]+$",
+                "description": "step name (default step1, step2, …); `from` and the stats use it" }),
+    );
+    let ops: Vec<&str> = OPERATOR_NAMES
+        .iter()
+        .copied()
+        .filter(|op| match kind {
+            StepKind::Start => CREATE_OPS.contains(op),
+            StepKind::Compound => !CREATE_OPS.contains(op),
+            StepKind::Any => true,
+        })
+        .collect();
+    if kind != StepKind::Start {
+        props.insert(
+            "select".into(),
+            describe(
+                r("condition"),
+                "condition over element properties; only matching elements are used",
+            ),
+        );
+        props.insert(
+            "from".into(),
+            json!({ "type": "string", "description": "only what this earlier step (of the same list) created" }),
+        );
+        props.insert("on".into(), describe(r("domain"), "element kind to select"));
+        props.insert(
+            "rule".into(),
+            json!({ "type": "string", "description": "include the named rule's steps here" }),
+        );
+        props.insert("compound".into(), r("compound_call"));
+        props.insert(
+            "repeat".into(),
+            json!({ "type": "integer", "minimum": 1, "maximum": 1_000_000,
+                    "description": "run the step (or included rule) this many times in a row" }),
+        );
+        props.insert(
+            "policy".into(),
+            describe(
+                r("policy"),
+                "G³ commands and compound calls: coinciding nodes merged, or products tested for intersection",
+            ),
+        );
+        props.insert(
+            "tolerance".into(),
+            describe(r("tolerance"), "merge distance (with policy = \"merge\")"),
+        );
+        props.insert(
+            "on_intersection".into(),
+            json!({ "enum": ["skip", "cancel_compound", "cancel_rule", "error"],
+                    "description": "G³ commands and compound calls: reaction to an intersecting product" }),
+        );
+    }
+    for op in &ops {
+        props.insert(
+            (*op).into(),
+            describe(r(&format!("op_{op}")), operator_description(op)),
+        );
+    }
+    // Exactly one of: an operator, `rule`, `compound`; with the keys each allows.
+    let mut choices = Vec::new();
+    let no = |keys: &[&str]| -> Value {
+        Value::Object(keys.iter().map(|k| ((*k).into(), json!(false))).collect())
+    };
+    for op in &ops {
+        let mut choice = json!({ "required": [op] });
+        if kind == StepKind::Start {
+            choices.push(choice);
+            continue;
+        }
+        let restricted = if CREATE_OPS.contains(op) || *op == "skin" {
+            no(&[
+                "select",
+                "from",
+                "on",
+                "policy",
+                "tolerance",
+                "on_intersection",
+            ])
+        } else {
+            let mut p = if COMMAND_NAMES.contains(op) {
+                Map::new()
+            } else {
+                match no(&["policy", "tolerance", "on_intersection"]) {
+                    Value::Object(m) => m,
+                    _ => unreachable!(),
+                }
+            };
+            p.insert("on".into(), json!({ "enum": allowed_on(op) }));
+            Value::Object(p)
+        };
+        choice["properties"] = restricted;
+        choices.push(choice);
+    }
+    if kind != StepKind::Start {
+        choices.push(json!({ "required": ["rule"],
+            "properties": no(&["select", "from", "on", "policy", "tolerance"]) }));
+        choices.push(json!({ "required": ["compound"] }));
+    }
+    let mut s = json!({
+        "type": "object",
+        "properties": props,
+        "additionalProperties": false,
+        "oneOf": choices,
+    });
+    if kind != StepKind::Start {
+        s["dependencies"] = json!({
+            "tolerance": { "required": ["policy"], "properties": { "policy": { "const": "merge" } } }
+        });
+    }
+    s
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum StepKind {
+    Start,
+    Any,
+    Compound,
+}
+
+fn steps_list(item: &str) -> Value {
+    json!({ "type": "array", "items": r(item) })
+}
+
+/// The JSON Schema of rule files.
+pub fn schema() -> Value {
+    let mut definitions = Map::new();
+    definitions.insert(
+        "value".into(),
+        json!({ "type": ["number", "string"], "minLength": 1,
+                "description": "a number or an expression string" }),
+    );
+    definitions.insert(
+        "spread".into(),
+        json!({ "anyOf": [ { "type": "number", "minimum": 0 }, { "type": "string", "minLength": 1 } ],
+                "description": "variation σ: adds U(−σ, σ) per primitive (0)" }),
+    );
+    definitions.insert(
+        "vector".into(),
+        json!({ "anyOf": [
+            r("value"),
+            { "type": "array", "items": r("value"), "minItems": 3, "maxItems": 3 } ],
+            "description": "[x, y, z] (numbers or expressions), or one value for all three" }),
+    );
+    definitions.insert(
+        "pair".into(),
+        json!({ "type": "array", "items": r("value"), "minItems": 2, "maxItems": 2 }),
+    );
+    definitions.insert(
+        "condition".into(),
+        json!({ "type": "string", "minLength": 1,
+                "description": "expression over parameters and element properties; non-zero is true" }),
+    );
+    definitions.insert(
+        "domain".into(),
+        json!({ "enum": ["verts", "edges", "faces"] }),
+    );
+    definitions.insert(
+        "policy".into(),
+        json!({ "enum": ["none", "merge", "intersect"] }),
+    );
+    definitions.insert(
+        "tolerance".into(),
+        json!({ "type": "number", "minimum": 0, "maximum": 1 }),
+    );
+    let mut param_table = object(
+        vec![
+            (
+                "uniform",
+                describe(r("pair"), "uniform real in [low, high)"),
+            ),
+            (
+                "normal",
+                describe(r("pair"), "normal [mean, standard deviation]"),
+            ),
+            (
+                "int",
+                describe(r("pair"), "uniform integer in [low, high], inclusive"),
+            ),
+            (
+                "choice",
+                json!({ "type": "array", "items": r("value"), "minItems": 1,
+                               "description": "one of these values" }),
+            ),
+            (
+                "weights",
+                json!({ "type": "array", "items": { "type": "number", "minimum": 0 },
+                                "description": "weights of the choices" }),
+            ),
+            (
+                "clamp",
+                describe(r("pair"), "clamp the drawn value into [min, max]"),
+            ),
+        ],
+        &[],
+    );
+    param_table["oneOf"] = json!([
+        { "required": ["uniform"] }, { "required": ["normal"] },
+        { "required": ["int"] }, { "required": ["choice"] } ]);
+    param_table["dependencies"] = json!({ "weights": ["choice"] });
+    definitions.insert(
+        "param".into(),
+        json!({ "anyOf": [ { "type": "number" }, { "type": "string", "minLength": 1 }, param_table ],
+                "description": "a constant, an expression over other parameters, or a distribution" }),
+    );
+    let frame = |with_name: bool| {
+        let mut p = vec![
+            (
+                "relative",
+                boolean("frame and sizes from the initial primitive"),
+            ),
+            ("length", value("the compound's length (Table 3.2)")),
+            ("radius", value("the compound's radius")),
+            ("heading", vector("the compound's heading")),
+            ("up", vector("the compound's up vector")),
+        ];
+        if with_name {
+            p.insert(
+                0,
+                (
+                    "name",
+                    json!({ "type": "string", "description": "the compound to apply" }),
+                ),
+            );
+        }
+        p
+    };
+    definitions.insert(
+        "compound_call".into(),
+        json!({ "anyOf": [ { "type": "string" }, object(frame(true), &["name"]) ],
+                "description": "apply a compound command: its name, or { name = …, length = … } overriding its parameters" }),
+    );
+    let mut compound_props = frame(false);
+    compound_props.insert(
+        0,
+        ("on", describe(r("domain"), "kind of the initial primitive")),
+    );
+    compound_props.insert(
+        1,
+        (
+            "select",
+            describe(r("condition"), "which primitives it starts from"),
+        ),
+    );
+    compound_props.push((
+        "step",
+        json!({ "type": "array", "items": r("compound_step"), "minItems": 1 }),
+    ));
+    compound_props.push((
+        "steps",
+        json!({ "type": "array", "items": r("compound_step"), "minItems": 1 }),
+    ));
+    let mut compound = object(compound_props, &["on"]);
+    compound["oneOf"] = json!([{ "required": ["step"] }, { "required": ["steps"] }]);
+    definitions.insert("compound".into(), compound);
+    let mut rule = object(
+        vec![("step", steps_list("step")), ("steps", steps_list("step"))],
+        &[],
+    );
+    rule["not"] = json!({ "required": ["step", "steps"] });
+    definitions.insert("rule".into(), rule);
+    definitions.insert("step".into(), step(StepKind::Any));
+    definitions.insert("compound_step".into(), step(StepKind::Compound));
+    definitions.insert("start".into(), step(StepKind::Start));
+    for op in OPERATOR_NAMES {
+        definitions.insert(format!("op_{op}"), operator(op));
+    }
+
+    let mut root = object(
+        vec![
+            (
+                "seed",
+                json!({ "type": "integer", "minimum": 0,
+                             "description": "default seed; `graftal run --seed N` overrides it" }),
+            ),
+            (
+                "params",
+                json!({
+                "type": "object",
+                "description": "named parameters: constants, expressions, distributions",
+                "propertyNames": { "pattern": "^[A-Za-z_][A-Za-z0-9_]*$", "not": { "enum": RESERVED } },
+                "additionalProperties": r("param") }),
+            ),
+            (
+                "start",
+                describe(r("start"), "the start shape: one create operator"),
+            ),
+            (
+                "step",
+                describe(steps_list("step"), "operators applied in order"),
+            ),
+            (
+                "steps",
+                describe(
+                    steps_list("step"),
+                    "operators applied in order (alias of `step`)",
+                ),
+            ),
+            (
+                "rules",
+                json!({ "type": "object", "additionalProperties": r("rule"),
+                              "description": "named step lists, included by rule = \"NAME\"" }),
+            ),
+            (
+                "compound",
+                json!({
+                "type": "object",
+                "description": "compound commands, applied by compound = \"NAME\"",
+                "propertyNames": { "pattern": "^[A-Za-z_][A-Za-z0-9_]*$" },
+                "additionalProperties": r("compound") }),
+            ),
+            (
+                "policy",
+                describe(r("policy"), "default policy of G³ commands (\"none\")"),
+            ),
+            (
+                "on_intersection",
+                json!({ "enum": ["skip", "error"],
+                "description": "default reaction to an intersecting product (\"skip\")" }),
+            ),
+            (
+                "tolerance",
+                describe(r("tolerance"), "merge distance in model units (1e-6)"),
+            ),
+        ],
+        &[],
+    );
+    root["not"] = json!({ "required": ["step", "steps"] });
+    let mut doc = Map::new();
+    doc.insert(
+        "$schema".into(),
+        json!("http://json-schema.org/draft-07/schema#"),
+    );
+    doc.insert("title".into(), json!("graftal rule file"));
+    doc.insert(
+        "description".into(),
+        json!("A graftal rule file (TOML or RON): parameters, a start shape, steps, rules and compound commands. See docs/rules.md."),
+    );
+    if let Value::Object(root) = root {
+        doc.extend(root);
+    }
+    doc.insert("definitions".into(), Value::Object(definitions));
+    Value::Object(doc)
+}
+
+/// The schema as `graftal schema` prints it (and `docs/graftal.schema.json`
+/// holds): pretty JSON with a final newline.
+pub fn schema_text() -> String {
+    let mut text = serde_json::to_string_pretty(&schema()).expect("schema serializes");
+    text.push('\n');
+    text
+}
+
+/// Rule text as the JSON value the schema describes.
+pub fn to_json(text: &str, format: SourceFormat) -> Result<Value, String> {
+    match format {
+        SourceFormat::Toml => {
+            let v: toml::Value = toml::from_str(text).map_err(|e| e.to_string())?;
+            serde_json::to_value(v).map_err(|e| e.to_string())
+        }
+        SourceFormat::Ron => {
+            let v: ron::Value = ron::Options::default()
+                .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+                .from_str(text)
+                .map_err(|e| e.to_string())?;
+            Ok(ron_to_json(v))
+        }
+    }
+}
+
+/// A rule file as the JSON value the schema describes.
+pub fn file_to_json(path: &Path) -> Result<Value, RuleError> {
+    let file = load_text(path)?;
+    let format = format_of(path).map_err(|m| RuleError::at(&file, None, m))?;
+    to_json(&file.text, format).map_err(|m| RuleError::at(&file, None, m))
+}
+
+fn ron_to_json(v: ron::Value) -> Value {
+    match v {
+        ron::Value::Bool(b) => Value::Bool(b),
+        ron::Value::Char(c) => Value::String(c.to_string()),
+        ron::Value::String(s) => Value::String(s),
+        ron::Value::Number(n) => match n {
+            ron::Number::I8(x) => json!(x),
+            ron::Number::I16(x) => json!(x),
+            ron::Number::I32(x) => json!(x),
+            ron::Number::I64(x) => json!(x),
+            ron::Number::U8(x) => json!(x),
+            ron::Number::U16(x) => json!(x),
+            ron::Number::U32(x) => json!(x),
+            ron::Number::U64(x) => json!(x),
+            ron::Number::F32(x) => json!(x.get()),
+            ron::Number::F64(x) => json!(x.get()),
+            #[allow(unreachable_patterns)]
+            _ => Value::Null,
+        },
+        ron::Value::Option(Some(inner)) => ron_to_json(*inner),
+        ron::Value::Option(None) => Value::Null,
+        ron::Value::Bytes(b) => Value::Array(b.into_iter().map(|x| json!(x)).collect()),
+        ron::Value::Seq(items) => Value::Array(items.into_iter().map(ron_to_json).collect()),
+        // `()` is an empty struct: `triangulate: ()`.
+        ron::Value::Unit => Value::Object(Map::new()),
+        ron::Value::Map(map) => {
+            let mut out = Map::new();
+            for (k, v) in map {
+                let key = match ron_to_json(k) {
+                    Value::String(s) => s,
+                    other => other.to_string(),
+                };
+                // An absent optional key and `None` mean the same.
+                if matches!(v, ron::Value::Option(None)) {
+                    continue;
+                }
+                out.insert(key, ron_to_json(v));
+            }
+            Value::Object(out)
+        }
+    }
+}
