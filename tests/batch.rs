@@ -403,6 +403,14 @@ fn bad_batch_input_exits_2_and_writes_nothing() {
     }
 }
 
+/// `graftal verify` of the chair's seeds 1 and 2 against `golden/`.
+fn verify(dir: &Path, extra: &[&str]) -> Output {
+    let chair = rules("chair.toml");
+    let mut args = vec!["verify", "--golden", "golden", &chair, "--seeds", "1..3"];
+    args.extend_from_slice(extra);
+    graftal_in(dir, &args)
+}
+
 #[test]
 fn verify_catches_a_one_ulp_change_unless_tolerated_and_bless_rewrites() {
     let dir = tempfile::tempdir().unwrap();
@@ -413,17 +421,9 @@ fn verify_catches_a_one_ulp_change_unless_tolerated_and_bless_rewrites() {
     assert_eq!(code(&o), 2);
     assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
     std::fs::create_dir(&golden).unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &[
-            "verify", "--golden", "golden", &chair, "--seeds", "1..3", "--bless",
-        ],
-    );
+    let o = verify(dir.path(), &["--bless"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let o = graftal_in(
-        dir.path(),
-        &["verify", "--golden", "golden", &chair, "--seeds", "1..3"],
-    );
+    let o = verify(dir.path(), &[]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
 
     // One float of the stats golden moved by one ULP.
@@ -434,10 +434,7 @@ fn verify_catches_a_one_ulp_change_unless_tolerated_and_bless_rewrites() {
     let nudged = f64::from_bits(area.to_bits() + 1);
     doc["mesh"]["area"] = serde_json::json!(nudged);
     std::fs::write(&json_path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &["verify", "--golden", "golden", &chair, "--seeds", "1..3"],
-    );
+    let o = verify(dir.path(), &[]);
     assert_eq!(code(&o), 1);
     let report = stderr(&o);
     assert!(
@@ -445,19 +442,7 @@ fn verify_catches_a_one_ulp_change_unless_tolerated_and_bless_rewrites() {
         "{report}"
     );
     assert!(report.contains(&nudged.to_string()), "{report}");
-    let o = graftal_in(
-        dir.path(),
-        &[
-            "verify",
-            "--golden",
-            "golden",
-            &chair,
-            "--seeds",
-            "1..3",
-            "--rel-tol",
-            "1e-12",
-        ],
-    );
+    let o = verify(dir.path(), &["--rel-tol", "1e-12"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
 
     // One vertex coordinate of the mesh golden moved by one ULP.
@@ -474,42 +459,19 @@ fn verify_catches_a_one_ulp_change_unless_tolerated_and_bless_rewrites() {
     let mut lines: Vec<String> = obj.lines().map(String::from).collect();
     lines[k] = format!("v {} {} {}", coords[0], coords[1], coords[2]);
     std::fs::write(&obj_path, lines.join("\n") + "\n").unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &["verify", "--golden", "golden", &chair, "--seeds", "1..3"],
-    );
+    let o = verify(dir.path(), &[]);
     assert_eq!(code(&o), 1);
     assert!(
         stderr(&o).contains("chair-1.obj: vertex 1 y: expected"),
         "{}",
         stderr(&o)
     );
-    let o = graftal_in(
-        dir.path(),
-        &[
-            "verify",
-            "--golden",
-            "golden",
-            &chair,
-            "--seeds",
-            "1..3",
-            "--abs-tol",
-            "1e-9",
-        ],
-    );
+    let o = verify(dir.path(), &["--abs-tol", "1e-9"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
 
     // --bless puts the truth back.
-    graftal_in(
-        dir.path(),
-        &[
-            "verify", "--golden", "golden", &chair, "--seeds", "1..3", "--bless",
-        ],
-    );
-    let o = graftal_in(
-        dir.path(),
-        &["verify", "--golden", "golden", &chair, "--seeds", "1..3"],
-    );
+    verify(dir.path(), &["--bless"]);
+    let o = verify(dir.path(), &[]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
 }
 

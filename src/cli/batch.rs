@@ -298,24 +298,77 @@ impl Template {
 }
 
 /// Everything `graftal run` was given.
+#[derive(clap::Args, Debug)]
 pub struct RunArgs {
+    /// Rule file (.toml or .ron).
     pub rules: PathBuf,
+    /// Output mesh: .obj, .gltf, .glb, .stl (binary), .ply (binary).
+    /// A template: `{name}`, `{seed}`, `{index}` and parameter names
+    /// are filled in per variant (`{seed:04}` zero-pads). Defaults to
+    /// `{name}.obj`; in a batch `{name}-{seed}.obj` (with a grid
+    /// `{name}-{index}.obj`).
+    #[arg(short, long, value_name = "OUT")]
     pub output: Option<String>,
+    /// Seed for every random draw (default: the file's `seed`, else 0).
+    #[arg(long, conflicts_with = "seeds")]
     pub seed: Option<u64>,
+    /// A batch over seeds: `0..1000` (end excluded), `0..=999`, `1,5,9`
+    /// or a mix (`0..10,100`).
+    #[arg(long, value_name = "RANGE", value_parser = SeedSet::parse)]
     pub seeds: Option<SeedSet>,
+    /// Override a parameter: `--set name=value` (a number or expression).
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = super::parse_override)]
     pub overrides: Vec<Override>,
+    /// A parameter grid axis: `--grid name=v1,v2,v3`; several axes and
+    /// `--seeds` make a cartesian product (first axis slowest, seeds
+    /// fastest).
+    #[arg(long = "grid", value_name = "NAME=V1,V2,...", value_parser = GridAxis::parse)]
     pub grid: Vec<GridAxis>,
-    pub jobs: Option<usize>,
+    /// Variants run at once (default: every core). Never changes a byte.
+    #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
+    pub jobs: Option<u64>,
+    /// Run only shard I of N (0-based: variants whose index is I mod N)
+    /// and write a shard manifest for `graftal manifest merge`.
+    #[arg(long, value_name = "I/N", value_parser = Shard::parse)]
     pub shard: Option<Shard>,
+    /// Batch manifest path (default: `manifest.json` in the output
+    /// template's directory; `manifest.shard-I-of-N.json` for a shard).
+    #[arg(long, value_name = "FILE")]
     pub manifest: Option<PathBuf>,
+    /// Write run statistics as JSON to FILE, or `-` for standard output.
+    /// In a batch: `-` streams NDJSON (one line per variant, in index
+    /// order), a path with `{...}` fields writes one file per variant,
+    /// any other path gets the NDJSON.
+    #[arg(long, value_name = "FILE")]
     pub stats: Option<String>,
+    /// Include wall-clock times in the stats and manifest (makes them
+    /// differ run to run).
+    #[arg(long)]
     pub timings: bool,
+    /// Stop (exit code 3, no output) when the model would exceed this
+    /// many primitives (vertices + edges + faces).
+    #[arg(long, visible_alias = "max-elements", default_value_t = crate::grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
     pub max_primitives: usize,
+    /// Stop (exit code 5, no output) after this many evaluations of
+    /// conditions and per-primitive parameters.
+    #[arg(long, default_value_t = crate::grammar::DEFAULT_MAX_EVALUATIONS, value_name = "N")]
     pub max_evaluations: u64,
+    /// Stop a variant (exit code 4, no output) after SECONDS of wall
+    /// clock.
+    #[arg(long, value_name = "SECONDS", value_parser = super::parse_timeout)]
     pub timeout: Option<f64>,
+    /// Stop starting variants after the first failure.
+    #[arg(long)]
     pub fail_fast: bool,
+    /// No progress bar, no summary, no "wrote" line (errors still go to
+    /// standard error).
+    #[arg(short, long)]
     pub quiet: bool,
+    /// Print a machine-readable summary of the batch on standard output.
+    #[arg(long)]
     pub json: bool,
+    /// Text-format variants: write STL and PLY as ASCII.
+    #[arg(long)]
     pub ascii: bool,
 }
 
@@ -754,6 +807,7 @@ fn run_variants(
     let jobs = context
         .args
         .jobs
+        .map(|j| j as usize)
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .clamp(1, variants.len().max(1));
     let next = AtomicUsize::new(0);

@@ -46,78 +46,7 @@ pub struct Cli {
 pub enum Command {
     /// Run a rule file and write the mesh (format from OUT's extension),
     /// or a batch of variants (`--seeds`, `--grid`).
-    Run {
-        /// Rule file (.toml or .ron).
-        rules: PathBuf,
-        /// Output mesh: .obj, .gltf, .glb, .stl (binary), .ply (binary).
-        /// A template: `{name}`, `{seed}`, `{index}` and parameter names
-        /// are filled in per variant (`{seed:04}` zero-pads). Defaults to
-        /// `{name}.obj`; in a batch `{name}-{seed}.obj` (with a grid
-        /// `{name}-{index}.obj`).
-        #[arg(short, long, value_name = "OUT")]
-        output: Option<String>,
-        /// Seed for every random draw (default: the file's `seed`, else 0).
-        #[arg(long, conflicts_with = "seeds")]
-        seed: Option<u64>,
-        /// A batch over seeds: `0..1000` (end excluded), `0..=999`, `1,5,9`
-        /// or a mix (`0..10,100`).
-        #[arg(long, value_name = "RANGE", value_parser = batch::SeedSet::parse)]
-        seeds: Option<batch::SeedSet>,
-        /// Override a parameter: `--set name=value` (a number or expression).
-        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
-        overrides: Vec<Override>,
-        /// A parameter grid axis: `--grid name=v1,v2,v3`; several axes and
-        /// `--seeds` make a cartesian product (first axis slowest, seeds
-        /// fastest).
-        #[arg(long = "grid", value_name = "NAME=V1,V2,...", value_parser = batch::GridAxis::parse)]
-        grid: Vec<batch::GridAxis>,
-        /// Variants run at once (default: every core). Never changes a byte.
-        #[arg(short = 'j', long = "jobs", value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
-        jobs: Option<u64>,
-        /// Run only shard I of N (0-based: variants whose index is I mod N)
-        /// and write a shard manifest for `graftal manifest merge`.
-        #[arg(long, value_name = "I/N", value_parser = batch::Shard::parse)]
-        shard: Option<batch::Shard>,
-        /// Batch manifest path (default: `manifest.json` in the output
-        /// template's directory; `manifest.shard-I-of-N.json` for a shard).
-        #[arg(long, value_name = "FILE")]
-        manifest: Option<PathBuf>,
-        /// Write run statistics as JSON to FILE, or `-` for standard output.
-        /// In a batch: `-` streams NDJSON (one line per variant, in index
-        /// order), a path with `{...}` fields writes one file per variant,
-        /// any other path gets the NDJSON.
-        #[arg(long, value_name = "FILE")]
-        stats: Option<String>,
-        /// Include wall-clock times in the stats and manifest (makes them
-        /// differ run to run).
-        #[arg(long)]
-        timings: bool,
-        /// Stop (exit code 3, no output) when the model would exceed this
-        /// many primitives (vertices + edges + faces).
-        #[arg(long, visible_alias = "max-elements", default_value_t = grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
-        max_primitives: usize,
-        /// Stop (exit code 5, no output) after this many evaluations of
-        /// conditions and per-primitive parameters.
-        #[arg(long, default_value_t = grammar::DEFAULT_MAX_EVALUATIONS, value_name = "N")]
-        max_evaluations: u64,
-        /// Stop a variant (exit code 4, no output) after SECONDS of wall
-        /// clock.
-        #[arg(long, value_name = "SECONDS", value_parser = parse_timeout)]
-        timeout: Option<f64>,
-        /// Stop starting variants after the first failure.
-        #[arg(long)]
-        fail_fast: bool,
-        /// No progress bar, no summary, no "wrote" line (errors still go to
-        /// standard error).
-        #[arg(short, long)]
-        quiet: bool,
-        /// Print a machine-readable summary of the batch on standard output.
-        #[arg(long)]
-        json: bool,
-        /// Text-format variants: write STL and PLY as ASCII.
-        #[arg(long)]
-        ascii: bool,
-    },
+    Run(batch::RunArgs),
     /// Parse and compile a rule file without running it.
     Check {
         rules: PathBuf,
@@ -136,35 +65,7 @@ pub enum Command {
     },
     /// Regenerate rule files and compare with stored goldens (stats JSON,
     /// and OBJ meshes where present); exit 1 on a difference.
-    Verify {
-        /// Directory of goldens: `<stem>.json` (and optionally `<stem>.obj`)
-        /// per rule file, `<stem>-<seed>.*` with `--seeds`.
-        #[arg(long, value_name = "DIR")]
-        golden: PathBuf,
-        /// Rule files to regenerate.
-        #[arg(required = true)]
-        rules: Vec<PathBuf>,
-        /// Verify these seeds of each file (default: the file's seed).
-        #[arg(long, value_name = "RANGE", value_parser = batch::SeedSet::parse)]
-        seeds: Option<batch::SeedSet>,
-        #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
-        overrides: Vec<Override>,
-        /// Absolute tolerance for floats.
-        #[arg(long, default_value_t = 0.0, value_parser = parse_tolerance)]
-        abs_tol: f64,
-        /// Relative tolerance for floats.
-        #[arg(long, default_value_t = 0.0, value_parser = parse_tolerance)]
-        rel_tol: f64,
-        /// Rewrite the goldens with the current output instead of comparing.
-        #[arg(long)]
-        bless: bool,
-        /// With --bless: write only the stats goldens, no OBJ meshes.
-        #[arg(long, requires = "bless")]
-        stats_only: bool,
-        /// No success line.
-        #[arg(short, long)]
-        quiet: bool,
-    },
+    Verify(verify::VerifyArgs),
     /// Batch manifests: `graftal manifest merge SHARD... -o OUT`.
     Manifest {
         #[command(subcommand)]
@@ -334,66 +235,8 @@ fn write_output(
 
 pub fn execute(command: Command) -> Result<(), Failure> {
     match command {
-        Command::Run {
-            rules,
-            output,
-            seed,
-            seeds,
-            overrides,
-            grid,
-            jobs,
-            shard,
-            manifest,
-            stats,
-            timings,
-            max_primitives,
-            max_evaluations,
-            timeout,
-            fail_fast,
-            quiet,
-            json,
-            ascii,
-        } => batch::run(batch::RunArgs {
-            rules,
-            output,
-            seed,
-            seeds,
-            overrides,
-            grid,
-            jobs: jobs.map(|j| j as usize),
-            shard,
-            manifest,
-            stats,
-            timings,
-            max_primitives,
-            max_evaluations,
-            timeout,
-            fail_fast,
-            quiet,
-            json,
-            ascii,
-        }),
-        Command::Verify {
-            golden,
-            rules,
-            seeds,
-            overrides,
-            abs_tol,
-            rel_tol,
-            bless,
-            stats_only,
-            quiet,
-        } => verify::verify(verify::VerifyArgs {
-            golden,
-            rules,
-            seeds,
-            overrides,
-            abs_tol,
-            rel_tol,
-            bless,
-            stats_only,
-            quiet,
-        }),
+        Command::Run(args) => batch::run(args),
+        Command::Verify(args) => verify::verify(args),
         Command::Manifest {
             action: ManifestAction::Merge { shards, output },
         } => {

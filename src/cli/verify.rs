@@ -25,16 +25,34 @@ const IGNORED_FIELDS: &[&str] = &["graftal_version", "rules"];
 /// Differences listed per golden file before the rest are only counted.
 const SHOWN_DIFFERENCES: usize = 12;
 
+#[derive(clap::Args, Debug)]
 pub struct VerifyArgs {
+    /// Directory of goldens: `<stem>.json` (and optionally `<stem>.obj`)
+    /// per rule file, `<stem>-<seed>.*` with `--seeds`.
+    #[arg(long, value_name = "DIR")]
     pub golden: PathBuf,
+    /// Rule files to regenerate.
+    #[arg(required = true)]
     pub rules: Vec<PathBuf>,
+    /// Verify these seeds of each file (default: the file's seed).
+    #[arg(long, value_name = "RANGE", value_parser = SeedSet::parse)]
     pub seeds: Option<SeedSet>,
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = super::parse_override)]
     pub overrides: Vec<Override>,
+    /// Absolute tolerance for floats.
+    #[arg(long, default_value_t = 0.0, value_parser = super::parse_tolerance)]
     pub abs_tol: f64,
+    /// Relative tolerance for floats.
+    #[arg(long, default_value_t = 0.0, value_parser = super::parse_tolerance)]
     pub rel_tol: f64,
+    /// Rewrite the goldens with the current output instead of comparing.
+    #[arg(long)]
     pub bless: bool,
-    /// With `--bless`: write stats goldens only.
+    /// With --bless: write only the stats goldens, no OBJ meshes.
+    #[arg(long, requires = "bless")]
     pub stats_only: bool,
+    /// No success line.
+    #[arg(short, long)]
     pub quiet: bool,
 }
 
