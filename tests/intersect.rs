@@ -4,29 +4,11 @@
 //! `kernel::intersect`.
 
 mod common;
-use common::{assert_rejected, program};
+use common::{assert_rejected, grow, program, step};
 
 use graftal::grammar::graph::RADIUS;
-use graftal::grammar::{run, RunOptions, RunOutput, StepStats};
+use graftal::grammar::{run, RunOptions, RunOutput};
 use graftal::kernel::intersect::{self_intersections, self_intersections_with, WireThickness};
-
-fn grow(text: &str) -> RunOutput {
-    let p = program(text).unwrap_or_else(|e| panic!("{}", e.headline()));
-    let options = RunOptions {
-        validate_each_step: true,
-        ..RunOptions::default()
-    };
-    let out = run(&p, &options).unwrap_or_else(|e| panic!("{e}"));
-    out.mesh.validate().unwrap();
-    out
-}
-
-fn step<'a>(out: &'a RunOutput, name: &str) -> &'a StepStats {
-    out.steps
-        .iter()
-        .find(|s| s.name == name)
-        .unwrap_or_else(|| panic!("no step {name}"))
-}
 
 fn total_rejected(out: &RunOutput) -> usize {
     out.steps.iter().map(|s| s.rejected).sum()

@@ -4,29 +4,13 @@
 //! kernel-level fixtures in `kernel::ops::coincide`.
 
 mod common;
-use common::{assert_rejected, program};
+use common::{assert_rejected, grow, program, step};
 
-use graftal::grammar::{run, RunOptions, RunOutput, StepStats};
-
-/// Runs with the kernel validated after every step.
-fn grow(text: &str) -> RunOutput {
-    let p = program(text).unwrap_or_else(|e| panic!("{}", e.headline()));
-    let options = RunOptions {
-        validate_each_step: true,
-        ..RunOptions::default()
-    };
-    let out = run(&p, &options).unwrap_or_else(|e| panic!("{e}"));
-    out.mesh.validate().unwrap();
-    out
-}
+use graftal::grammar::{run, RunOptions, RunOutput};
 
 fn counts(out: &RunOutput) -> [usize; 3] {
     let m = &out.mesh;
     [m.vert_count(), m.edge_count(), m.face_count()]
-}
-
-fn step<'a>(out: &'a RunOutput, name: &str) -> &'a StepStats {
-    out.steps.iter().find(|s| s.name == name).unwrap()
 }
 
 fn with_policy(policy: &str, body: &str) -> String {

@@ -11,7 +11,7 @@ use crate::kernel::Domain;
 
 use super::ast::{self, DomainName, Operation, ParamSpec, RuleFile, Scalar as AstScalar};
 use super::diagnostic::{find_key, find_literal, offset_of, RuleError, SourceFile};
-use super::expr::{Expr, ExprError};
+use super::expr::{Expr, ExprError, BUILTIN_CONSTANT_NAMES};
 use super::program::{
     Command, CommandKind, Compound, Condition, FrameParams, Offset, OnIntersection, Op, Param,
     ParamKind, Policy, Program, Property, Scalar, Step, Vector,
@@ -549,7 +549,7 @@ pub fn compile(
             ));
         }
         if PROPERTY_NAMES.contains(&name.value.as_str())
-            || ["pi", "tau", "e", "true", "false"].contains(&name.value.as_str())
+            || BUILTIN_CONSTANT_NAMES.contains(&name.value.as_str())
         {
             return Err(compiler.error(
                 span,

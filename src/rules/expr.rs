@@ -728,7 +728,7 @@ fn builtin_constant(name: &str) -> Option<f64> {
     }
 }
 
-const BUILTIN_CONSTANT_NAMES: [&str; 5] = ["pi", "tau", "e", "true", "false"];
+pub(crate) const BUILTIN_CONSTANT_NAMES: [&str; 5] = ["pi", "tau", "e", "true", "false"];
 
 #[derive(Debug, Clone, Copy)]
 enum Callee {

@@ -19,8 +19,9 @@ use std::path::Path;
 use serde_json::{json, Map, Value};
 
 use super::ast::{COMMAND_NAMES, OPERATOR_NAMES};
-use super::compile::{format_of, load_text};
+use super::compile::{format_of, load_text, PROPERTY_NAMES};
 use super::diagnostic::RuleError;
+use super::expr::BUILTIN_CONSTANT_NAMES;
 use super::spanned::SourceFormat;
 
 /// Operators that make a shape from nothing (allowed in `[start]`).
@@ -35,29 +36,15 @@ const CREATE_OPS: &[&str] = &[
     "import",
 ];
 
-/// Names parameters may not take (element properties and constants).
-const RESERVED: &[&str] = &[
-    "id",
-    "random",
-    "length",
-    "area",
-    "sides",
-    "degree",
-    "edges",
-    "faces",
-    "neighbors",
-    "vert_neighbors",
-    "age",
-    "generation",
-    "radius",
-    "out_edges",
-    "in_edges",
-    "pi",
-    "tau",
-    "e",
-    "true",
-    "false",
-];
+/// Names parameters may not take: the compiler's element properties and
+/// built-in constants.
+fn reserved_names() -> Vec<&'static str> {
+    PROPERTY_NAMES
+        .iter()
+        .chain(&BUILTIN_CONSTANT_NAMES)
+        .copied()
+        .collect()
+}
 
 /// Element kinds an operator's `on` may name; the first is the default
 /// (mirrors the compiler's rule, checked against it by the tests).
@@ -648,7 +635,7 @@ pub fn schema() -> Value {
                 json!({
                 "type": "object",
                 "description": "named parameters: constants, expressions, distributions",
-                "propertyNames": { "pattern": "^[A-Za-z_][A-Za-z0-9_]*$", "not": { "enum": RESERVED } },
+                "propertyNames": { "pattern": "^[A-Za-z_][A-Za-z0-9_]*$", "not": { "enum": reserved_names() } },
                 "additionalProperties": r("param") }),
             ),
             (

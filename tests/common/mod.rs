@@ -1,7 +1,9 @@
-//! Helpers shared by the integration tests.
+//! Helpers shared by the integration tests (each test crate uses some).
+#![allow(dead_code)]
 
 use std::path::Path;
 
+use graftal::grammar::{run, RunOptions, RunOutput, StepStats};
 use graftal::rules::compile::{compile, parse};
 use graftal::rules::diagnostic::SourceFile;
 use graftal::rules::spanned::SourceFormat;
@@ -30,4 +32,24 @@ pub fn assert_rejected(cases: &[(&str, &str)]) {
             "{message}\n  should contain: {expected}"
         );
     }
+}
+
+/// Compiles and runs rule text with the kernel validated after every step.
+pub fn grow(text: &str) -> RunOutput {
+    let p = program(text).unwrap_or_else(|e| panic!("{}", e.headline()));
+    let options = RunOptions {
+        validate_each_step: true,
+        ..RunOptions::default()
+    };
+    let out = run(&p, &options).unwrap_or_else(|e| panic!("{e}"));
+    out.mesh.validate().unwrap();
+    out
+}
+
+/// The statistics of the step named `name`.
+pub fn step<'a>(out: &'a RunOutput, name: &str) -> &'a StepStats {
+    out.steps
+        .iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("no step {name}"))
 }
