@@ -1,8 +1,8 @@
 //! Broad phase: [`obvhs`] BVHs over conservative `f32` boxes.
 //!
-//! - [`intersecting_pairs`] (whole-mesh self-intersection) builds one BVH
-//!   and walks it against itself (a simultaneous descent visits each pair
-//!   of overlapping leaves once: obvhs has no self-pair query).
+//! - Whole-mesh self-intersection lives in `super::pairs` (its own linear
+//!   BVH over flat primitives); `intersecting_pairs` here is its entry for
+//!   lists of items (tests), and [`threads_for`] its thread policy.
 //! - [`IntersectionIndex`] answers "would this new primitive hit anything?"
 //!   while a model grows, with the Bentley–Saxe logarithmic method: a small
 //!   buffer scanned linearly plus static BVHs of doubling capacity. An
@@ -20,11 +20,12 @@ use obvhs::bvh2::builder::build_bvh2;
 use obvhs::bvh2::Bvh2;
 use obvhs::ploc::{PlocSearchDistance, SortPrecision};
 use obvhs::BvhBuildParams;
-use rustc_hash::FxHashSet;
 
+#[cfg(test)]
+use super::pairs::{self, Soup};
 use super::{
-    edge_item, items_intersect, mesh_items, primitives_intersect, push_face, push_ring, Element,
-    Item, Primitive, Scratch, WireThickness, NO_VERT,
+    edge_item, mesh_items, primitives_intersect, push_face, push_ring, Element, Item, Primitive,
+    Scratch, WireThickness, NO_VERT,
 };
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
@@ -33,7 +34,7 @@ use crate::kernel::ops::Selection;
 // ---- conservative f32 boxes ----
 
 /// The largest `f32` not above `x` (−∞ stays −∞).
-fn round_down(x: f64) -> f32 {
+pub(super) fn round_down(x: f64) -> f32 {
     let f = x as f32;
     if f64::from(f) > x {
         step_down(f)
@@ -43,7 +44,7 @@ fn round_down(x: f64) -> f32 {
 }
 
 /// The smallest `f32` not below `x`.
-fn round_up(x: f64) -> f32 {
+pub(super) fn round_up(x: f64) -> f32 {
     let f = x as f32;
     if f64::from(f) < x {
         -step_down(-f)
@@ -174,79 +175,6 @@ impl Tree {
         start as usize..end as usize
     }
 
-    /// Item pairs of two chunks of different elements with overlapping boxes.
-    #[inline]
-    fn chunk_pairs(&self, ca: usize, cb: usize, visit: &mut impl FnMut(usize, usize)) {
-        let (ra, rb) = (self.chunk(ca), self.chunk(cb));
-        if self.items[ra.start].owner == self.items[rb.start].owner
-            || !self.chunk_boxes[ca].intersect_aabb(&self.chunk_boxes[cb])
-        {
-            return;
-        }
-        for i in ra {
-            for j in rb.clone() {
-                if self.boxes[i].intersect_aabb(&self.boxes[j]) {
-                    visit(i, j);
-                }
-            }
-        }
-    }
-
-    /// The simultaneous descent of the tree against itself from the node
-    /// pairs in `stack`, where `(a, a)` stands for "the pairs within subtree
-    /// a": calls `visit(i, j)` once for every unordered pair of items of
-    /// different elements whose boxes overlap (a chunk's items belong to one
-    /// element and are never paired). With `split_until`
-    /// it stops once the stack holds that many pairs and returns them
-    /// (tasks to share out); otherwise it runs to the end.
-    fn descend(
-        &self,
-        mut stack: Vec<(u32, u32)>,
-        split_until: Option<usize>,
-        visit: &mut impl FnMut(usize, usize),
-    ) -> Vec<(u32, u32)> {
-        let nodes = &self.bvh.nodes;
-        while let Some((a, b)) = stack.pop() {
-            let (na, nb) = (&nodes[a as usize], &nodes[b as usize]);
-            if a == b {
-                if na.is_leaf() {
-                    let chunks = self.leaf(a);
-                    for ca in chunks.clone() {
-                        for cb in ca + 1..chunks.end {
-                            self.chunk_pairs(ca, cb, visit);
-                        }
-                    }
-                } else {
-                    let c = na.first_index;
-                    stack.extend([(c, c), (c + 1, c + 1), (c, c + 1)]);
-                }
-            } else if na.aabb().intersect_aabb(nb.aabb()) {
-                match (na.is_leaf(), nb.is_leaf()) {
-                    (true, true) => {
-                        for ca in self.leaf(a) {
-                            for cb in self.leaf(b) {
-                                self.chunk_pairs(ca, cb, visit);
-                            }
-                        }
-                    }
-                    // Descend the inner node, or the larger of two inner nodes.
-                    (false, leaf_b) if leaf_b || na.aabb().half_area() >= nb.aabb().half_area() => {
-                        let c = na.first_index;
-                        stack.extend([(c, b), (c + 1, b)]);
-                    }
-                    _ => {
-                        let c = nb.first_index;
-                        stack.extend([(a, c), (a, c + 1)]);
-                    }
-                }
-            }
-            if split_until.is_some_and(|n| stack.len() >= n) {
-                return stack;
-            }
-        }
-        stack
-    }
-
     /// Whether any stored item whose box overlaps `query` passes `test`.
     fn any(&self, query: Aabb, mut test: impl FnMut(&Item) -> bool) -> bool {
         let mut hit = false;
@@ -270,82 +198,34 @@ impl Tree {
 
 /// Every pair of distinct elements whose items intersect, smaller element
 /// first, sorted and deduplicated. A face's triangles must be consecutive.
+/// (The mesh passes build flat primitives directly; tests use items.)
 ///
-/// The descent and the exact tests run on up to [`THREADS`] threads for
-/// large inputs: the tree's top is expanded into independent node-pair
-/// tasks, dealt out in turn. The result is a sorted set, so it is the same
-/// whatever the thread count or timing.
+/// Runs on up to [`THREADS`] threads for large inputs (see
+/// [`super::pairs`]); the result is a sorted set, the same whatever the
+/// thread count or timing.
+#[cfg(test)]
 pub(crate) fn intersecting_pairs(items: Vec<Item>) -> Vec<(Element, Element)> {
-    let threads = if items.len() < PARALLEL_ITEMS {
-        1
-    } else {
-        std::thread::available_parallelism().map_or(1, |n| n.get().min(THREADS))
-    };
+    let threads = threads_for(items.len());
     intersecting_pairs_on(items, threads)
 }
 
 /// [`intersecting_pairs`] on a given number of threads.
+#[cfg(test)]
 pub(crate) fn intersecting_pairs_on(items: Vec<Item>, threads: usize) -> Vec<(Element, Element)> {
-    let tree = Tree::new(items);
-    if tree.bvh.nodes.is_empty() {
-        return Vec::new();
-    }
-    let find = |tasks: Vec<(u32, u32)>, found: &mut FxHashSet<(Element, Element)>| {
-        tree.descend(tasks, None, &mut |i, j| {
-            let (a, b) = (&tree.items[i], &tree.items[j]);
-            let key = (a.owner.min(b.owner), a.owner.max(b.owner));
-            // Skip pairs already found (the set is usually empty: no hashing).
-            if (found.is_empty() || !found.contains(&key)) && items_intersect(a, b) {
-                found.insert(key);
-            }
-        });
-    };
-    let mut found: FxHashSet<(Element, Element)> = FxHashSet::default();
-    if threads <= 1 {
-        find(vec![(0, 0)], &mut found);
+    pairs::intersecting_pairs(Soup::from_items(&items), threads)
+}
+
+/// Threads for the self-intersection descent over `items` primitives.
+pub(crate) fn threads_for(items: usize) -> usize {
+    if items < PARALLEL_ITEMS {
+        1
     } else {
-        // Pairs met while expanding the top are tested here, at once.
-        let mut visit = |i: usize, j: usize| {
-            let (a, b) = (&tree.items[i], &tree.items[j]);
-            if items_intersect(a, b) {
-                found.insert((a.owner.min(b.owner), a.owner.max(b.owner)));
-            }
-        };
-        let tasks = tree.descend(vec![(0, 0)], Some(16 * threads), &mut visit);
-        let mut shares: Vec<Vec<(u32, u32)>> = vec![Vec::new(); threads];
-        for (k, task) in tasks.into_iter().enumerate() {
-            shares[k % threads].push(task);
-        }
-        let results: Vec<FxHashSet<(Element, Element)>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = shares
-                .into_iter()
-                .map(|share| {
-                    scope.spawn(move || {
-                        let mut found = FxHashSet::default();
-                        find(share, &mut found);
-                        found
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join()
-                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-                })
-                .collect()
-        });
-        for set in results {
-            found.extend(set);
-        }
+        std::thread::available_parallelism().map_or(1, |n| n.get().min(THREADS))
     }
-    let mut pairs: Vec<(Element, Element)> = found.into_iter().collect();
-    pairs.sort_unstable();
-    pairs
 }
 
 /// Threads for the self-intersection descent, at most.
-const THREADS: usize = 2;
+pub(crate) const THREADS: usize = 2;
 
 /// Below this many items one thread is faster than starting more.
 pub(crate) const PARALLEL_ITEMS: usize = 20_000;

@@ -74,14 +74,23 @@
 //! predicates. Exactly coplanar configurations that are not axis-aligned
 //! and not separable that way (rare) cost microseconds per pair.
 //!
+//! Whole-mesh self-intersection (`pairs`) stores primitives as flat
+//! records of vertex indices, specializes these filters to triangles (and
+//! adds one more for pairs sharing a vertex: a plane through an edge at
+//! that vertex), and hands everything undecided, every segment and every
+//! pair with a thickness to [`primitives_intersect`] itself.
+//!
 //! # Broad phase
 //!
-//! [`obvhs`] BVHs over `f32` boxes rounded outward from the `f64` bounds (and
-//! widened by each primitive's thickness), so `f32` can add candidates but
-//! never lose one; every candidate is decided by the exact `f64` tests.
+//! BVHs over `f32` boxes rounded outward from the `f64` bounds (and widened
+//! by each primitive's thickness), so `f32` can add candidates but never
+//! lose one; every candidate is decided by the exact `f64` tests. The
+//! growth index uses [`obvhs`] trees; whole-mesh self-intersection a
+//! Morton-ordered tree of its own, walked against itself on two threads.
 //! Traversal order is never part of a result: pair lists are sorted.
 
 pub mod bvh;
+mod pairs;
 pub mod predicates;
 #[cfg(test)]
 mod tests;
@@ -633,7 +642,7 @@ fn mesh_items(mesh: &Mesh, wires: Option<WireThickness>) -> Vec<Item> {
 /// Whether two items of different elements intersect: the pair threshold
 /// is the sum of their thicknesses (two tubes touch when their axes are
 /// `r₁ + r₂` apart; a tube touches a face at `r`).
-#[inline]
+#[cfg(test)]
 pub(crate) fn items_intersect(a: &Item, b: &Item) -> bool {
     primitives_intersect(&a.prim, &b.prim, a.thickness + b.thickness)
 }
@@ -661,8 +670,7 @@ impl SelfIntersections {
 /// vertices and shared edges (module docs), sorted and deduplicated.
 /// Wire edges are ignored; see [`self_intersections_with`].
 pub fn self_intersections(mesh: &Mesh) -> Vec<(FaceId, FaceId)> {
-    let items = mesh_items(mesh, None);
-    bvh::intersecting_pairs(items)
+    mesh_pairs(mesh, None)
         .into_iter()
         .filter_map(|pair| match pair {
             (Element::Face(a), Element::Face(b)) => Some((a, b)),
@@ -671,12 +679,20 @@ pub fn self_intersections(mesh: &Mesh) -> Vec<(FaceId, FaceId)> {
         .collect()
 }
 
+/// The intersecting element pairs of the primitives of [`mesh_items`],
+/// built and tested on the threads the mesh's size calls for.
+fn mesh_pairs(mesh: &Mesh, wires: Option<WireThickness>) -> Vec<(Element, Element)> {
+    let build_threads = bvh::threads_for(2 * mesh.face_count());
+    let soup = pairs::mesh_soup(mesh, wires, build_threads);
+    let threads = bvh::threads_for(soup.len());
+    pairs::intersecting_pairs(soup, threads)
+}
+
 /// [`self_intersections`] with wire edges too, tested as capsules of the
 /// given thickness against faces and against each other.
 pub fn self_intersections_with(mesh: &Mesh, wires: WireThickness) -> SelfIntersections {
-    let items = mesh_items(mesh, Some(wires));
     let mut out = SelfIntersections::default();
-    for pair in bvh::intersecting_pairs(items) {
+    for pair in mesh_pairs(mesh, Some(wires)) {
         match pair {
             (Element::Face(a), Element::Face(b)) => out.faces.push((a, b)),
             (Element::Edge(e), Element::Face(f)) => out.edge_faces.push((e, f)),

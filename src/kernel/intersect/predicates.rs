@@ -140,6 +140,7 @@ pub(crate) struct Plane {
 }
 
 impl Plane {
+    #[inline(always)]
     pub(crate) fn new(t: [DVec3; 3]) -> Self {
         let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
         let products =
