@@ -21,7 +21,12 @@
 //!   stacked). With several threads the top of that descent is expanded
 //!   breadth first into independent node-pair tasks, which the threads
 //!   take from a shared counter.
-//! - Each candidate pair of triangles is first given certified
+//! - Each vertex gets one certificate that its fan of triangles is
+//!   embedded, a flat or smooth umbrella ([`certified_fans`]: O(valence)
+//!   filtered orientation tests), which settles at once the candidate
+//!   pairs of triangles around it that share it alone or a mesh edge at
+//!   it: nine in ten of all pairs on a smooth surface.
+//! - Each other candidate pair of triangles is first given certified
 //!   floating-point tests ([`triangles_miss`]) whose "miss" implies a miss
 //!   of [`super::primitives_intersect`]; whatever they leave undecided goes
 //!   to `primitives_intersect` itself (the reference, with the exact
@@ -36,7 +41,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::DVec3;
 use rustc_hash::FxHashSet;
 
-use super::predicates::Plane;
+use super::predicates::{orient3d_filtered_at, Plane};
 #[cfg(test)]
 use super::Item;
 use super::{primitives_intersect, Element, Primitive, WireThickness, NO_VERT};
@@ -75,6 +80,9 @@ pub(crate) struct Soup {
     boxes: Vec<Box3>,
     /// In item order; items with non-finite corners are in none.
     chunks: Vec<Chunk>,
+    /// Per vertex id, whether its fan is certified embedded
+    /// ([`certified_fans`]); empty when none is (a soup of loose items).
+    fans: Vec<bool>,
 }
 
 /// A run of items `start .. end` of one element, all with finite corners,
@@ -139,6 +147,7 @@ impl Soup {
             thickness: Vec::new(),
             boxes: Vec::new(),
             chunks: Vec::new(),
+            fans: Vec::new(),
         };
         for item in items {
             let k = soup.points.len() as u32;
@@ -166,6 +175,12 @@ impl Soup {
             start = run_end;
         }
         soup
+    }
+
+    /// Per vertex id, whether its fan is certified embedded.
+    #[cfg(test)]
+    pub(crate) fn certified_fans(&self) -> &[bool] {
+        &self.fans
     }
 
     /// Number of primitives.
@@ -283,6 +298,7 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
         thickness: Vec::new(),
         boxes: Vec::new(),
         chunks: Vec::new(),
+        fans: Vec::new(),
     };
     if let Some(wires) = wires {
         let first = flats.len();
@@ -320,6 +336,8 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
     }
     soup.boxes = boxes;
     soup.chunks = chunks;
+    // Positions are indexed by vertex id here, as the certificate needs.
+    soup.fans = certified_fans(&soup.points, &soup.flats, threads);
     soup
 }
 
@@ -767,7 +785,7 @@ impl Soup {
         if exact
             && a.len == 3
             && b.len == 3
-            && triangles_miss(&self.points, a, self.ids(i), b, self.ids(j))
+            && triangles_miss(&self.points, &self.fans, a, self.ids(i), b, self.ids(j))
         {
             return false;
         }
@@ -787,7 +805,8 @@ impl Soup {
 ///
 /// - none: one triangle strictly beside the other's plane, or
 ///   `split` across a plane between them;
-/// - one, `v`: `split` through `v`; both far parts strictly beside the
+/// - one, `v`: `v`'s fan certified embedded ([`certified_fans`]);
+///   `split` through `v`; both far parts strictly beside the
 ///   other's plane (the opening tests of both `separated` calls); or a
 ///   plane through an edge of one triangle at `v`, about perpendicular to
 ///   it (`separated`'s edge planes), with that triangle's third corner
@@ -800,11 +819,20 @@ impl Soup {
 ///   The first triangle is then not degenerate (its third corner is off
 ///   the line of the edge) and `v` is a proper corner of it, so `v` lies
 ///   on neither far part and the exact shared-vertex test agrees;
-/// - two along a mesh edge of both: the other's apex strictly beside the
+/// - two along a mesh edge of both: the fan of either end certified (the
+///   two are consecutive sectors there, meeting in the edge alone, and
+///   not folded onto each other), or the other's apex strictly beside the
 ///   first's plane (the planes are not the same, so they meet only in the
 ///   edge's line).
 #[inline(always)]
-fn triangles_miss(points: &[DVec3], a: &Flat, ids_a: [u32; 3], b: &Flat, ids_b: [u32; 3]) -> bool {
+fn triangles_miss(
+    points: &[DVec3],
+    fans: &[bool],
+    a: &Flat,
+    ids_a: [u32; 3],
+    b: &Flat,
+    ids_b: [u32; 3],
+) -> bool {
     // Corners are read straight from `points` by index, never through
     // arrays of points indexed at run time (those go through the stack).
     let p = |k: u32| points[k as usize];
@@ -840,6 +868,9 @@ fn triangles_miss(points: &[DVec3], a: &Flat, ids_a: [u32; 3], b: &Flat, ids_b: 
         1 => {
             let bit = mask.trailing_zeros() as usize;
             let (i, j) = (bit / 3, bit % 3);
+            if fans.get(ids_a[i] as usize) == Some(&true) {
+                return true;
+            }
             let (va, a1, a2) = (p(a.pt[i]), p(a.pt[(i + 1) % 3]), p(a.pt[(i + 2) % 3]));
             let (vb, b1, b2) = (p(b.pt[j]), p(b.pt[(j + 1) % 3]), p(b.pt[(j + 2) % 3]));
             if split2(va, a1, a2, b1, b2) {
@@ -861,10 +892,13 @@ fn triangles_miss(points: &[DVec3], a: &Flat, ids_a: [u32; 3], b: &Flat, ids_b: 
                 // An id twice in one triangle: leave it to the reference.
                 return false;
             }
+            let certified = |v: u32| fans.get(v as usize) == Some(&true);
             is_boundary(a.boundary, i0, i1)
                 && is_boundary(b.boundary, j0, j1)
-                && Plane::new([p(a.pt[0]), p(a.pt[1]), p(a.pt[2])]).side(p(b.pt[3 - j0 - j1]))
-                    != 0.0
+                && (certified(ids_a[i0])
+                    || certified(ids_a[i1])
+                    || Plane::new([p(a.pt[0]), p(a.pt[1]), p(a.pt[2])]).side(p(b.pt[3 - j0 - j1]))
+                        != 0.0)
         }
         _ => false,
     }
@@ -968,4 +1002,205 @@ fn beyond_edge_at(v: DVec3, ends: [DVec3; 2], plane: &Plane, far: &[DVec3; 2]) -
                     side != 0.0 && (side > 0.0) != (inside > 0.0)
                 })
         })
+}
+
+// ---- certified vertex fans ----
+
+/// Per vertex id (an index into `points`), whether its *fan* (every
+/// triangle of `flats` with it as a corner) is certified embedded: any two
+/// of its triangles that share no other corner meet in that vertex alone,
+/// and two that share a second corner `w` meet in the segment `v w` alone,
+/// from opposite sides. Nine in ten candidate pairs of a smooth surface
+/// are such neighbours, and one certificate per vertex (O(valence)
+/// filtered orientation tests) settles them all.
+///
+/// The certificate for vertex `v` at `p`, with its triangles rotated to
+/// `(v, aₖ, bₖ)` in corner order, and two floating-point points `q` and
+/// `r` (any points: they only fix a projection and a reference ray):
+///
+/// 1. Every triangle holds `v` once, and the `aₖ` are distinct and are
+///    exactly the `bₖ`: the link of `v` is a union of cycles.
+/// 2. `s(aₖ, bₖ)` has one sign σ for all k, where
+///    `s(x, y) = orient3d(x, y, q, p)` (certified by the floating-point
+///    filter): projected along `q − p`, each triangle is a proper sector at
+///    `p` turning the same way, of angle in (0, π).
+/// 3. `s(w, r) ≠ 0` for every neighbour `w` (certified), so the ray from
+///    `p` towards `r` lies on no sector's side, and exactly one k has
+///    `σ·s(aₖ, r) > 0` and `σ·s(bₖ, r) < 0`: one sector holds the ray.
+///
+/// Walking a cycle of the link turns by whole turns, at least one, and a
+/// ray on no side is inside as many sectors as the turns; so (3) leaves one
+/// cycle turning once. Its sectors tile the plane around `p`. Two that are
+/// not consecutive share no corner besides `v` (a neighbour `w` is the
+/// start of one sector and the end of one, which are consecutive), and
+/// their closed sectors meet only in `p`: projections of the triangles
+/// then meet only in `p`, which only `v` projects to, so the triangles
+/// meet only in `v`, not on the far edge of either (each is proper), and
+/// [`super::primitives_intersect`] says no. Two consecutive ones share
+/// the ray towards `w` and lie on its two sides; only the segment `v w`
+/// of either projects onto the ray, so they meet in it alone, not folded
+/// onto each other, and `primitives_intersect` says no when `v w` is a
+/// mesh edge of both (which the caller checks). Anything less certain (open
+/// fans, folds, pinched or degenerate fans, non-finite corners, three
+/// triangles or fewer) leaves the vertex uncertified, and its pairs go to
+/// the other tests.
+fn certified_fans(points: &[DVec3], flats: &[Flat], threads: usize) -> Vec<bool> {
+    // The triangles at each vertex, as offsets into one array.
+    let mut start = vec![0u32; points.len() + 1];
+    for f in flats.iter().filter(|f| f.len == 3) {
+        for &p in &f.pt {
+            start[p as usize + 1] += 1;
+        }
+    }
+    for k in 1..start.len() {
+        start[k] += start[k - 1];
+    }
+    let mut fan = vec![0u32; start[points.len()] as usize];
+    let mut fill = start.clone();
+    for (k, f) in flats.iter().enumerate().filter(|(_, f)| f.len == 3) {
+        for &p in &f.pt {
+            fan[fill[p as usize] as usize] = k as u32;
+            fill[p as usize] += 1;
+        }
+    }
+    let certify = |range: std::ops::Range<usize>| {
+        let mut sectors = Vec::new();
+        range
+            .map(|v| {
+                let triangles = &fan[start[v] as usize..start[v + 1] as usize];
+                fan_is_embedded(points, flats, v as u32, triangles, &mut sectors)
+            })
+            .collect::<Vec<bool>>()
+    };
+    let n = points.len();
+    if threads <= 1 || n < PARALLEL_FACES {
+        return certify(0..n);
+    }
+    let share = n.div_ceil(threads);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (share..n)
+            .step_by(share)
+            .map(|lo| scope.spawn(move || certify(lo..n.min(lo + share))))
+            .collect();
+        let mut fans = certify(0..share);
+        for handle in handles {
+            fans.extend(join(handle));
+        }
+        fans
+    })
+}
+
+/// One triangle `(v, a, b)` of a fan, as [`fan_is_embedded`] keeps it.
+#[derive(Clone, Copy, Debug)]
+struct Sector {
+    a: u32,
+    b: u32,
+    /// `s(a, r) > 0`.
+    a_before_ray: bool,
+}
+
+/// Fans up to this size are checked to be cycles by comparing every pair
+/// of sectors (no sort); larger ones (the poles of a UV sphere) are sorted.
+const SMALL_FAN: usize = 32;
+
+/// The certificate of [`certified_fans`] for vertex `v` and its triangles;
+/// `sectors` is a buffer reused from vertex to vertex.
+fn fan_is_embedded(
+    points: &[DVec3],
+    flats: &[Flat],
+    v: u32,
+    triangles: &[u32],
+    sectors: &mut Vec<Sector>,
+) -> bool {
+    if triangles.len() < 4 {
+        return false;
+    }
+    // The corners after `v` in a triangle holding it once.
+    let rotate = |k: u32| {
+        let pt = flats[k as usize].pt;
+        let at = pt.iter().position(|&c| c == v)?;
+        let (a, b) = (pt[(at + 1) % 3], pt[(at + 2) % 3]);
+        (a != v && b != v).then_some((a, b))
+    };
+    let p = points[v as usize];
+    let Some((a0, b0)) = rotate(triangles[0]) else {
+        return false;
+    };
+    // The first triangle's normal, scaled to about its edges' length (a
+    // tiny or huge offset would round `q − p` badly), and a ray between
+    // its two edges, off their bisector (which points straight away from
+    // a neighbour in a regular fan of odd valence): choices that make the
+    // tests decisive, not sound.
+    let (x, y) = (points[a0 as usize] - p, points[b0 as usize] - p);
+    let normal = x.cross(y);
+    let q = p + normal * ((x.abs() + y.abs()).element_sum() / normal.abs().element_sum());
+    let r = p + x + y * 1.618_033_988_749_895;
+    if !(q.is_finite() && r.is_finite()) {
+        return false;
+    }
+    // `s(·, ·)` from rounded differences, as `orient3d_filtered` takes them.
+    let (qd, rd) = (q - p, r - p);
+    sectors.clear();
+    let mut sigma: Option<bool> = None;
+    for &k in triangles {
+        let Some((a, b)) = rotate(k) else {
+            return false;
+        };
+        let (ad, bd) = (points[a as usize] - p, points[b as usize] - p);
+        let (Some(sector), Some(ray)) = (
+            orient3d_filtered_at(ad, bd, qd),
+            orient3d_filtered_at(ad, rd, qd),
+        ) else {
+            return false;
+        };
+        if *sigma.get_or_insert(sector > 0.0) != (sector > 0.0) {
+            return false;
+        }
+        sectors.push(Sector {
+            a,
+            b,
+            a_before_ray: ray > 0.0,
+        });
+    }
+    let sigma = sigma == Some(true);
+    // Per sector, the sector starting where it ends; `None` unless the
+    // starts are distinct and are exactly the ends.
+    let holds_ray =
+        |s: &Sector, next: &Sector| s.a_before_ray == sigma && next.a_before_ray != sigma;
+    let mut holding = 0;
+    if sectors.len() <= SMALL_FAN {
+        let mut taken = 0u32;
+        for s in sectors.iter() {
+            let mut found = None;
+            for (j, t) in sectors.iter().enumerate() {
+                if t.a == s.b {
+                    if found.is_some() {
+                        return false;
+                    }
+                    found = Some(j);
+                }
+            }
+            let Some(j) = found else { return false };
+            if taken & (1 << j) != 0 {
+                return false;
+            }
+            taken |= 1 << j;
+            holding += usize::from(holds_ray(s, &sectors[j]));
+        }
+    } else {
+        sectors.sort_unstable_by_key(|s| s.a);
+        if sectors.windows(2).any(|w| w[0].a == w[1].a) {
+            return false;
+        }
+        let mut ends: Vec<u32> = sectors.iter().map(|s| s.b).collect();
+        ends.sort_unstable();
+        if sectors.iter().map(|s| s.a).ne(ends.iter().copied()) {
+            return false;
+        }
+        for s in sectors.iter() {
+            let next = &sectors[sectors.partition_point(|t| t.a < s.b)];
+            holding += usize::from(holds_ray(s, next));
+        }
+    }
+    holding == 1
 }

@@ -110,11 +110,18 @@ pub(crate) fn orient3d(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
 /// quad), and many tests can be decided from other, well-conditioned
 /// orientations, so the exact stage is deferred until it is needed.
 #[inline]
-fn orient3d_filtered(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> Option<f64> {
+pub(crate) fn orient3d_filtered(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> Option<f64> {
+    orient3d_filtered_at(a - d, b - d, c - d)
+}
+
+/// [`orient3d_filtered`] from the floating-point differences `a − d`,
+/// `b − d`, `c − d` (rounded as `-` rounds them: the filter's bound covers
+/// that rounding, nothing else), for callers that reuse them.
+#[inline]
+pub(crate) fn orient3d_filtered_at(ad: DVec3, bd: DVec3, cd: DVec3) -> Option<f64> {
     // Shewchuk's O3DERRBOUND_A with epsilon = 2^-53.
     const EPSILON: f64 = f64::EPSILON * 0.5;
     const BOUND: f64 = (7.0 + 56.0 * EPSILON) * EPSILON;
-    let (ad, bd, cd) = (a - d, b - d, c - d);
     let bxcy = bd.x * cd.y;
     let cxby = cd.x * bd.y;
     let cxay = cd.x * ad.y;

@@ -1088,3 +1088,140 @@ proptest! {
         }
     }
 }
+
+// ---- certified vertex fans ----
+
+/// Per vertex id of `mesh`, whether the whole-mesh pass certified its fan.
+fn certified(mesh: &Mesh) -> Vec<bool> {
+    pairs::mesh_soup(mesh, None, 1).certified_fans().to_vec()
+}
+
+/// The whole-mesh pass on 1 and 2 threads against the all-pairs reference.
+fn assert_pairs_match_reference(m: &Mesh) {
+    let expect = brute_force(&mesh_items(m, None));
+    for threads in 1..=2 {
+        let found = pairs::intersecting_pairs(pairs::mesh_soup(m, None, threads), threads);
+        assert_eq!(found, expect, "{threads} thread(s)");
+    }
+}
+
+#[test]
+fn every_fan_of_a_sphere_is_certified() {
+    // 40 segments: the poles' fans are larger than the pairwise check
+    // takes, and go through the sorted one.
+    for segments in [6, 24, 40] {
+        let mut m = Mesh::new();
+        create::create_uv_sphere(&mut m, segments, 9, 1.0).unwrap();
+        let fans = certified(&m);
+        let uncertified: Vec<VertId> = m.vert_ids().filter(|v| !fans[v.index()]).collect();
+        assert_eq!(uncertified, Vec::<VertId>::new(), "{segments} segments");
+    }
+}
+
+/// A vertex at the origin with a closed fan of `n` triangles to a ring of
+/// points `ring(i)`.
+fn fan_mesh(n: usize, ring: impl Fn(usize) -> DVec3) -> (Mesh, VertId) {
+    let mut m = Mesh::new();
+    let centre = m.make_vert(DVec3::ZERO);
+    let around: Vec<VertId> = (0..n).map(|i| m.make_vert(ring(i))).collect();
+    for i in 0..n {
+        m.make_face(&[centre, around[i], around[(i + 1) % n]])
+            .unwrap();
+    }
+    (m, centre)
+}
+
+#[test]
+fn a_flat_closed_fan_is_certified_and_a_fan_winding_twice_is_not() {
+    let circle = |turns: f64, n: usize, rise: f64| {
+        move |i: usize| {
+            let angle = turns * std::f64::consts::TAU * i as f64 / n as f64;
+            DVec3::new(angle.cos(), angle.sin(), rise * i as f64)
+        }
+    };
+    for n in [4, 7, 40] {
+        let (m, centre) = fan_mesh(n, circle(1.0, n, 0.0));
+        assert!(certified(&m)[centre.index()], "flat fan of {n}");
+        assert_pairs_match_reference(&m);
+    }
+    // The ring goes round twice (rising, so no two points coincide): the
+    // link is one cycle, every sector turns the same way, yet the
+    // triangles overlap.
+    for (n, rise) in [(8, 0.0), (8, 0.05), (9, 0.02), (80, 0.001)] {
+        let (m, centre) = fan_mesh(n, circle(2.0, n, rise));
+        assert!(
+            !certified(&m)[centre.index()],
+            "double fan of {n}, rise {rise}"
+        );
+        assert_pairs_match_reference(&m);
+        if rise == 0.0 {
+            assert!(!self_intersections(&m).is_empty());
+        }
+    }
+}
+
+#[test]
+fn folded_open_and_pinched_fans_are_not_certified() {
+    // One ring point pulled across the centre: a sector turns the other
+    // way.
+    let (m, centre) = fan_mesh(6, |i| {
+        let angle = std::f64::consts::TAU * i as f64 / 6.0;
+        let r = if i == 2 { -0.3 } else { 1.0 };
+        DVec3::new(r * angle.cos(), r * angle.sin(), 0.2)
+    });
+    assert!(!certified(&m)[centre.index()]);
+    assert_pairs_match_reference(&m);
+
+    // An open fan: the corner of a grid and its edge vertices.
+    let mut grid = Mesh::new();
+    create::create_grid(&mut grid, 3, 3, 3.0, 3.0).unwrap();
+    let fans = certified(&grid);
+    let certified_count = grid.vert_ids().filter(|v| fans[v.index()]).count();
+    assert_eq!(certified_count, 4, "only the 2 × 2 inner vertices");
+
+    // Two cones sharing their apex: two cycles in the link.
+    let mut m = Mesh::new();
+    let apex = m.make_vert(DVec3::ZERO);
+    for z in [1.0, -1.0] {
+        let ring: Vec<VertId> = (0..5)
+            .map(|i| {
+                let angle = std::f64::consts::TAU * f64::from(i) / 5.0;
+                m.make_vert(DVec3::new(angle.cos(), angle.sin(), z))
+            })
+            .collect();
+        for i in 0..5 {
+            m.make_face(&[apex, ring[i], ring[(i + 1) % 5]]).unwrap();
+        }
+    }
+    assert!(!certified(&m)[apex.index()]);
+    assert_pairs_match_reference(&m);
+}
+
+/// A coarse UV sphere with every vertex moved by up to ±0.4 per axis:
+/// closed fans, many certified, some folded through their neighbours.
+fn jittered_sphere_strategy() -> impl Strategy<Value = Mesh> {
+    prop::collection::vec((-4i32..=4, -4i32..=4, -4i32..=4), 42).prop_map(|jitter| {
+        let mut m = Mesh::new();
+        create::create_uv_sphere(&mut m, 8, 6, 1.0).unwrap();
+        let verts: Vec<VertId> = m.vert_ids().collect();
+        assert_eq!(verts.len(), jitter.len());
+        for (v, (x, y, z)) in verts.into_iter().zip(jitter) {
+            let d = DVec3::new(f64::from(x), f64::from(y), f64::from(z)) * 0.1;
+            m.set_position(v, m.position(v) + d);
+        }
+        m
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn jittered_sphere_pairs_equal_brute_force(m in jittered_sphere_strategy()) {
+        let expect = brute_force(&mesh_items(&m, None));
+        for threads in 1..=2 {
+            let found = pairs::intersecting_pairs(pairs::mesh_soup(&m, None, threads), threads);
+            prop_assert_eq!(&found, &expect);
+        }
+    }
+}
