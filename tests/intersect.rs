@@ -94,6 +94,43 @@ fn skip_leaves_out_only_the_intersecting_application() {
     assert_eq!(step(&out, "short").applied, 1);
 }
 
+/// Two posts along +y whose tips an `edit_node` leans crosswise: each
+/// leaning post alone clears the other post as it stood, but the two lean
+/// posts cross.
+const CROSSING_LEAN: &str = r#"
+[[step]]
+name = "a"
+vertex = { at = [0, 0, 0], radius = 0.01 }
+[[step]]
+name = "b"
+vertex = { at = [1, 0, 0], radius = 0.01 }
+[[step]]
+name = "posts"
+select = "degree == 0"
+create_edge = { heading = [0, 1, 0], length = 1 }
+[[step]]
+name = "lean"
+select = "pos.y > 0.5"
+policy = "intersect"
+edit_node = { heading = ["1 - 2 * pos.x", 1, 0], length = 1.4142135623730951 }
+"#;
+
+#[test]
+fn an_application_is_tested_against_what_earlier_ones_reshaped() {
+    let wires =
+        |out: &RunOutput| self_intersections_with(&out.mesh, WireThickness::VertLayer(RADIUS));
+    // The first tip leans; the second would cross the first post's new
+    // shape (not its old one), so it stays.
+    let out = grow(CROSSING_LEAN);
+    assert_eq!(step(&out, "lean").applied, 1);
+    assert_eq!(step(&out, "lean").rejected, 1);
+    assert!(wires(&out).edges.is_empty(), "{:?}", wires(&out).edges);
+    // Without the policy both lean and the posts cross.
+    let out = grow(&CROSSING_LEAN.replace("policy = \"intersect\"\n", ""));
+    assert_eq!(step(&out, "lean").applied, 2);
+    assert_eq!(wires(&out).edges.len(), 1);
+}
+
 #[test]
 fn error_stops_the_run_with_a_located_message() {
     let text = format!(

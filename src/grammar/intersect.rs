@@ -7,8 +7,10 @@
 //! turns a command's plan into the primitives to test: the new edges as
 //! capsules as thick as their nodes, the new or reshaped faces as their
 //! triangles. Primitives the application reshapes or removes (the edge a
-//! `split_edge` splits, its faces, the face a `split_face` fans) are left out
-//! of the test, and the index is rebuilt after a command that reshaped any.
+//! `split_edge` splits, its faces, the face a `split_face` fans, the edges
+//! and faces around a node `edit_node` moves) are left out of its test;
+//! once it is made they leave the index and their new shapes join it, so
+//! the next application of the command meets the model as it now is.
 
 use glam::DVec3;
 use rustc_hash::FxHashSet;
@@ -28,9 +30,7 @@ const WIRES: WireThickness<'static> = WireThickness::VertLayer(RADIUS);
 #[derive(Default)]
 pub struct Guard {
     index: Option<IntersectionIndex>,
-    /// Indexed primitives reshaped since the index was built.
-    stale: FxHashSet<Element>,
-    /// What the application being tested would reshape.
+    /// What the application being tested would reshape or remove.
     pending: FxHashSet<Element>,
 }
 
@@ -43,7 +43,6 @@ impl Guard {
     /// The next test rebuilds it from the mesh.
     pub fn invalidate(&mut self) {
         self.index = None;
-        self.stale.clear();
     }
 
     /// Adds what a command made, so later tests see it. `reshaped`: the
@@ -57,9 +56,8 @@ impl Guard {
     }
 
     /// Whether applying `plan` of a `kind` command would make a product
-    /// that intersects the model. Primitives that earlier applications of
-    /// the same command reshaped are left out (their old shape is stale,
-    /// their new one is not indexed until the command ends).
+    /// that intersects the model (what the application reshapes is tested
+    /// in its new shape only).
     pub fn would_intersect(&mut self, mesh: &Mesh, kind: CommandKind, plan: &Plan) -> bool {
         let index = self
             .index
@@ -69,8 +67,7 @@ impl Guard {
             faces,
             skip,
         } = tests(mesh, kind, plan);
-        let stale = &self.stale;
-        let left_out = |e: Element| skip.contains(&e) || stale.contains(&e);
+        let left_out = |e: Element| skip.contains(&e);
         let hit = segments.iter().any(|s| {
             index.segment_hits_except(s.ends[0], s.ends[1], s.thickness, &s.attached, &left_out)
         }) || faces
@@ -80,17 +77,40 @@ impl Guard {
         hit
     }
 
-    /// The application just tested was made: its products join the index
-    /// and what it reshaped is left out of later tests.
+    /// The application just tested was made: what it reshaped or removed
+    /// leaves the index, and what it made and the new shapes of what it
+    /// reshaped join it.
     pub fn accept(&mut self, mesh: &Mesh, products: &Selection) {
-        self.stale.extend(self.pending.drain());
-        if let Some(index) = &mut self.index {
-            index.insert_products(mesh, products, WIRES);
+        let mut reshaped: Vec<Element> = self.pending.drain().collect();
+        let Some(index) = &mut self.index else {
+            return;
+        };
+        // Sorted: the trees' shape then follows the ids, not hashing.
+        reshaped.sort_unstable();
+        for &element in &reshaped {
+            index.remove(element);
         }
+        for element in reshaped {
+            match element {
+                Element::Face(f) if mesh.contains_face(f) && !products.faces.contains(&f) => {
+                    index.insert_face(mesh, f);
+                }
+                Element::Edge(e)
+                    if mesh.contains_edge(e)
+                        && !products.edges.contains(&e)
+                        && mesh.is_wire_edge(e) =>
+                {
+                    index.insert_edge(mesh, e, WIRES.of(mesh, e));
+                }
+                _ => {}
+            }
+        }
+        index.insert_products(mesh, products, WIRES);
     }
 
     /// A testing command ended; if it reshaped primitives the index is
-    /// rebuilt before the next test.
+    /// rebuilt before the next test (dropping the removed primitives it
+    /// still holds).
     pub fn finish_command(&mut self, reshaped: bool) {
         if reshaped {
             self.invalidate();

@@ -20,6 +20,7 @@ use obvhs::bvh2::builder::build_bvh2;
 use obvhs::bvh2::Bvh2;
 use obvhs::ploc::{PlocSearchDistance, SortPrecision};
 use obvhs::BvhBuildParams;
+use rustc_hash::FxHashMap;
 
 #[cfg(test)]
 use super::pairs::{self, Soup};
@@ -272,6 +273,11 @@ pub struct IntersectionIndex {
     levels: Vec<Option<Tree>>,
     len: usize,
     scratch: Scratch,
+    /// Bumped by each removal; items are stored with the current epoch.
+    epoch: u64,
+    /// Per removed element, the epoch of its removal: its items stored
+    /// before it are dead (left in the trees, skipped by queries).
+    removed: FxHashMap<Element, u64>,
 }
 
 impl IntersectionIndex {
@@ -298,7 +304,8 @@ impl IntersectionIndex {
         index
     }
 
-    /// Number of stored primitives (triangles and segments).
+    /// Number of stored primitives (triangles and segments), including
+    /// those of removed elements.
     pub fn len(&self) -> usize {
         self.len
     }
@@ -350,10 +357,31 @@ impl IntersectionIndex {
         self.levels.iter().flatten().count()
     }
 
-    pub(super) fn insert(&mut self, item: Item) {
+    /// Takes `element`'s stored primitives out of every later query; what
+    /// is stored for it afterwards (its new shape) counts. Growth calls
+    /// this for what an application reshapes or deletes, so that the next
+    /// application of the same command is tested against the model as it
+    /// now is.
+    pub fn remove(&mut self, element: Element) {
+        self.epoch += 1;
+        self.removed.insert(element, self.epoch);
+    }
+
+    /// Whether `item` belongs to an element removed after it was stored.
+    #[inline]
+    fn is_dead(&self, item: &Item) -> bool {
+        !self.removed.is_empty()
+            && self
+                .removed
+                .get(&item.owner)
+                .is_some_and(|&at| item.epoch < at)
+    }
+
+    pub(super) fn insert(&mut self, mut item: Item) {
         let Some(b) = aabb(&item.prim, item.thickness) else {
             return;
         };
+        item.epoch = self.epoch;
         self.len += 1;
         self.buffer.push(item);
         self.buffer_boxes.push(b);
@@ -490,7 +518,7 @@ impl IntersectionIndex {
             return false;
         };
         let test = &|item: &Item| {
-            if left_out(item.owner) {
+            if left_out(item.owner) || self.is_dead(item) {
                 return false;
             }
             let q = attach(query, &item.prim, ignore_verts);

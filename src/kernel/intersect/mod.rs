@@ -556,6 +556,9 @@ pub(crate) struct Item {
     pub(crate) prim: Primitive,
     pub(crate) thickness: f64,
     pub(crate) owner: Element,
+    /// The [`IntersectionIndex`] epoch the item was stored in, which tells
+    /// a removed element's old primitives from its new ones (0 elsewhere).
+    pub(crate) epoch: u64,
 }
 
 /// Appends the triangles of face `f` (its triangulation, with face edges
@@ -607,6 +610,7 @@ fn push_ring(
             ),
             thickness: 0.0,
             owner,
+            epoch: 0,
         });
     }
 }
@@ -621,6 +625,7 @@ pub(crate) fn edge_item(mesh: &Mesh, e: EdgeId, thickness: f64) -> Item {
             0.0
         },
         owner: Element::Edge(e),
+        epoch: 0,
     }
 }
 

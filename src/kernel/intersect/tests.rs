@@ -812,6 +812,37 @@ fn index_insert_products_and_many_levels() {
     assert!(!index.segment_hits(p(11.0, 0.0, -1.0), p(11.0, 0.0, 1.0), 0.0, &[]));
 }
 
+#[test]
+fn index_removed_elements_keep_only_their_new_shape() {
+    // Enough faces that the removed ones sit in trees, not the buffer.
+    let mut m = Mesh::new();
+    let made = create::create_grid(&mut m, 20, 20, 20.0, 20.0).unwrap();
+    let mut index = IntersectionIndex::from_mesh(&m, WireThickness::Zero);
+    let through = |index: &IntersectionIndex, z: f64| {
+        index.segment_hits(p(0.5, 0.5, z - 0.25), p(0.5, 0.5, z + 0.25), 0.0, &[])
+    };
+    assert!(through(&index, 0.0));
+    let f = made
+        .faces
+        .iter()
+        .copied()
+        .find(|&g| m.face_verts(g).map(|v| m.position(v)).sum::<DVec3>() / 4.0 == p(0.5, 0.5, 0.0))
+        .expect("a cell centred at (0.5, 0.5)");
+    index.remove(Element::Face(f));
+    assert!(!through(&index, 0.0), "removed");
+    // The face lifted by 1 and stored again: only its new shape counts,
+    // and removing it again takes that one out too.
+    for v in m.face_verts(f).collect::<Vec<_>>() {
+        m.set_position(v, m.position(v) + DVec3::Z);
+    }
+    index.insert_face(&m, f);
+    assert!(through(&index, 1.0) && !through(&index, 0.0));
+    index.remove(Element::Face(f));
+    assert!(!through(&index, 1.0));
+    // Other faces are untouched.
+    assert!(index.segment_hits(p(5.5, 5.5, -1.0), p(5.5, 5.5, 1.0), 0.0, &[]));
+}
+
 /// A small soup of triangles and segments over a pool of shared vertices,
 /// with coordinates on a coarse grid so that coplanar, collinear and
 /// touching cases are common; split into stored items and queries that use
@@ -841,6 +872,7 @@ fn soup_strategy() -> impl Strategy<Value = (Vec<Item>, Vec<Item>)> {
                             prim: Primitive::segment([pool[i], pool[j]], [id(i), id(j)]),
                             thickness: f64::from(flags % 3) * 0.25,
                             owner: Element::Edge(EdgeId(k as u32)),
+                            epoch: 0,
                         })
                     } else {
                         (i != j && j != l && i != l).then(|| Item {
@@ -851,6 +883,7 @@ fn soup_strategy() -> impl Strategy<Value = (Vec<Item>, Vec<Item>)> {
                             ),
                             thickness: 0.0,
                             owner: Element::Face(FaceId(k as u32)),
+                            epoch: 0,
                         })
                     }
                 })
