@@ -131,6 +131,36 @@ fn an_application_is_tested_against_what_earlier_ones_reshaped() {
     assert_eq!(wires(&out).edges.len(), 1);
 }
 
+/// A thick wire path (0,0,0) → (1,0,0) → (1,1,0) and a triangle grown flat
+/// on each edge: the first below the path, the second inside the corner,
+/// passing 0.2 from the first edge. Once the first edge has a face it is
+/// no longer a capsule 0.3 thick, so the second triangle is free to grow.
+const FACES_ON_A_THICK_PATH: &str = r#"
+[[step]]
+name = "a"
+vertex = { at = [0, 0, 0], radius = 0.3 }
+[[step]]
+name = "out"
+select = "degree == 0"
+create_edge = { heading = [1, 0, 0], length = 1 }
+[[step]]
+name = "up"
+select = "degree == 1 && pos.x > 0.5"
+create_edge = { heading = [0, 1, 0], length = 1 }
+[[step]]
+name = "faces"
+policy = "intersect"
+create_face = { relative = false, heading = ["-0.5 - 0.4 * center.y", "-0.5 - 0.6 * center.y", 0], length = "0.7071067811865476 + 0.7118 * center.y" }
+"#;
+
+#[test]
+fn a_wire_edge_that_gains_a_face_stops_being_a_capsule() {
+    let out = grow(FACES_ON_A_THICK_PATH);
+    assert_eq!(step(&out, "faces").applied, 2);
+    assert_eq!(step(&out, "faces").rejected, 0);
+    assert!(self_intersections(&out.mesh).is_empty());
+}
+
 #[test]
 fn error_stops_the_run_with_a_located_message() {
     let text = format!(
