@@ -358,10 +358,10 @@ impl IntersectionIndex {
     }
 
     /// Takes `element`'s stored primitives out of every later query; what
-    /// is stored for it afterwards (its new shape) counts. Growth calls
-    /// this for what an application reshapes or deletes, so that the next
-    /// application of the same command is tested against the model as it
-    /// now is.
+    /// is stored for it afterwards (its new shape) counts. A caller that
+    /// edits the mesh between queries removes what the edit reshaped or
+    /// deleted and stores the new shapes, keeping the index true to the
+    /// mesh without a rebuild.
     pub fn remove(&mut self, element: Element) {
         self.epoch += 1;
         self.removed.insert(element, self.epoch);
