@@ -2,17 +2,11 @@
 //! `-j` and shards, manifests, NDJSON stats, limits, golden checks and the
 //! bad input each must refuse.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::{examples, graftal, graftal_in, stderr};
 
-/// Runs graftal in `dir` (relative paths in outputs and manifests).
-fn graftal_in(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_graftal"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("graftal runs")
-}
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn rules(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -22,8 +16,12 @@ fn rules(name: &str) -> String {
         .to_string()
 }
 
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
+/// `graftal manifest merge INPUTS -o OUTPUT` in `dir`.
+fn merge(dir: &Path, inputs: &[&str], output: &str) -> Output {
+    let mut args = vec!["manifest", "merge"];
+    args.extend(inputs);
+    args.extend(["-o", output]);
+    graftal_in(dir, &args)
 }
 
 fn code(o: &Output) -> i32 {
@@ -144,10 +142,8 @@ fn four_shards_merge_into_the_unsharded_manifest_and_files() {
     let shard_files: Vec<String> = (0..4)
         .map(|i| format!("out/manifest.shard-{i}-of-4.json"))
         .collect();
-    let mut merge = vec!["manifest", "merge"];
-    merge.extend(shard_files.iter().rev().map(String::as_str));
-    merge.extend(["-o", "out/manifest.json"]);
-    let o = graftal_in(sharded.path(), &merge);
+    let reversed: Vec<&str> = shard_files.iter().rev().map(String::as_str).collect();
+    let o = merge(sharded.path(), &reversed, "out/manifest.json");
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     for f in &shard_files {
         std::fs::remove_file(sharded.path().join(f)).unwrap();
@@ -155,16 +151,7 @@ fn four_shards_merge_into_the_unsharded_manifest_and_files() {
     assert!(files(sharded.path()) == files(whole.path()));
 
     // Shards that do not add up are refused, with nothing written.
-    let o = graftal_in(
-        sharded.path(),
-        &[
-            "manifest",
-            "merge",
-            "out/manifest.json",
-            "-o",
-            "out/m2.json",
-        ],
-    );
+    let o = merge(sharded.path(), &["out/manifest.json"], "out/m2.json");
     assert_eq!(code(&o), 2);
     assert!(stderr(&o).contains("not a shard"), "{}", stderr(&o));
     assert!(!sharded.path().join("out/m2.json").exists());
@@ -192,16 +179,10 @@ fn manifests_from_different_rule_files_or_versions_do_not_merge() {
         );
         assert_eq!(code(&o), 0, "{}", stderr(&o));
     }
-    let o = graftal_in(
+    let o = merge(
         dir.path(),
-        &[
-            "manifest",
-            "merge",
-            "chair.toml.json",
-            "house.toml.json",
-            "-o",
-            "m.json",
-        ],
+        &["chair.toml.json", "house.toml.json"],
+        "m.json",
     );
     assert_eq!(code(&o), 2);
     assert!(
@@ -235,17 +216,7 @@ fn manifests_from_different_rule_files_or_versions_do_not_merge() {
         text.replace(&version, "\"graftal_version\": \"0.0.1\""),
     )
     .unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &[
-            "manifest",
-            "merge",
-            "chair.toml.json",
-            "other.json",
-            "-o",
-            "m.json",
-        ],
-    );
+    let o = merge(dir.path(), &["chair.toml.json", "other.json"], "m.json");
     assert_eq!(code(&o), 2);
     assert!(
         stderr(&o).contains("different graftal versions"),
@@ -478,25 +449,14 @@ fn verify_catches_a_one_ulp_change_unless_tolerated_and_bless_rewrites() {
 /// The project's own goldens: every example's stats and mesh, exactly.
 #[test]
 fn examples_match_the_project_goldens() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut args = vec![
-        "verify".to_string(),
-        "--golden".into(),
-        "tests/golden".into(),
-    ];
-    let mut examples: Vec<String> = std::fs::read_dir(root.join("rules"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml" || e == "ron"))
+    // Relative paths: the goldens are keyed by them.
+    let examples: Vec<String> = examples()
+        .iter()
         .map(|p| format!("rules/{}", p.file_name().unwrap().to_string_lossy()))
         .collect();
-    examples.sort();
-    args.extend(examples);
-    let o = Command::new(env!("CARGO_BIN_EXE_graftal"))
-        .current_dir(root)
-        .args(&args)
-        .output()
-        .unwrap();
+    let mut args = vec!["verify", "--golden", "tests/golden"];
+    args.extend(examples.iter().map(String::as_str));
+    let o = graftal(&args);
     assert_eq!(
         code(&o),
         0,

@@ -1,16 +1,10 @@
 //! End-to-end tests of the `graftal` binary: examples, determinism, bad
 //! input, exit codes and atomic output.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::{examples, graftal, stderr};
 
-fn graftal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_graftal"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
+use std::path::Path;
 
 fn temp_dir() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")
@@ -18,22 +12,6 @@ fn temp_dir() -> tempfile::TempDir {
 
 fn path_str(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn examples() -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> =
-        std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("rules"))
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("toml" | "ron")))
-            .collect();
-    files.sort();
-    assert!(files.len() >= 4, "rules/ holds the examples");
-    files
 }
 
 /// Examples that are not closed solids: surfaces grown on open faces, and

@@ -3,39 +3,13 @@
 //! shared-primitive rule, determinism, and rejected input.
 
 mod common;
-use common::{assert_rejected, program};
+use common::{assert_rejected, grow, run_validated, step, toml};
 
 use glam::DVec3;
 use graftal::grammar::{run, RunErrorKind, RunOptions, RunOutput};
 use graftal::io::bridge::mesh_to_indexed;
 use graftal::kernel::{Mesh, VertId};
 use graftal::rules::Program;
-
-fn toml(text: &str) -> Program {
-    program(text).unwrap_or_else(|e| panic!("{}", e.headline()))
-}
-
-/// Runs with the kernel validated after every step.
-fn run_with(p: &Program, options: RunOptions) -> RunOutput {
-    let options = RunOptions {
-        validate_each_step: true,
-        ..options
-    };
-    let out = run(p, &options).unwrap_or_else(|e| panic!("{e}"));
-    out.mesh.validate().unwrap();
-    out
-}
-
-fn grow(text: &str) -> RunOutput {
-    run_with(&toml(text), RunOptions::default())
-}
-
-fn step<'a>(out: &'a RunOutput, name: &str) -> &'a graftal::grammar::StepStats {
-    out.steps
-        .iter()
-        .find(|s| s.name == name)
-        .unwrap_or_else(|| panic!("no step {name}"))
-}
 
 /// The newest node and the length of its incoming edge.
 fn newest_edge_length(mesh: &Mesh) -> f64 {
@@ -277,9 +251,9 @@ fn visiting_order_does_not_change_the_result() {
             .replace("[[step]]\nname = \"skin\"\nskin = { sides = 6 }", ""),
     ] {
         let p = toml(&text);
-        let base = canonical(&run_with(&p, RunOptions::default()).mesh);
+        let base = canonical(&run_validated(&p, RunOptions::default()).mesh);
         for shuffle in [1, 2, 3] {
-            let shuffled = run_with(
+            let shuffled = run_validated(
                 &p,
                 RunOptions {
                     shuffle_visits: Some(shuffle),
@@ -296,7 +270,7 @@ fn same_seed_same_bytes_and_streams_are_independent() {
     let tree = include_str!("../rules/tree.toml");
     let p = toml(tree);
     let bytes = |p: &Program, seed| {
-        let out = run_with(
+        let out = run_validated(
             p,
             RunOptions {
                 seed: Some(seed),
@@ -319,8 +293,8 @@ fn same_seed_same_bytes_and_streams_are_independent() {
         trunk,
         &format!("[[step]]\nname = \"unrelated\"\nselect = \"random < 0.5\"\ntranslate = {{ offset = [0, 0, 0] }}\n\n{trunk}"),
     ));
-    let a = run_with(&p, RunOptions::default());
-    let b = run_with(&more, RunOptions::default());
+    let a = run_validated(&p, RunOptions::default());
+    let b = run_validated(&more, RunOptions::default());
     let positions =
         |o: &RunOutput| -> Vec<DVec3> { o.mesh.vert_ids().map(|v| o.mesh.position(v)).collect() };
     assert_eq!(positions(&a), positions(&b));

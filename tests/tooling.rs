@@ -3,8 +3,10 @@
 //! files, and kept in step with the compiler), `lint`, `explain`,
 //! `completions`, `man`.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::{examples, graftal, stderr, stdout};
+
+use std::path::Path;
 
 use graftal::rules::compile;
 use graftal::rules::diagnostic::SourceFile;
@@ -12,35 +14,23 @@ use graftal::rules::schema;
 use graftal::rules::spanned::SourceFormat;
 use serde_json::Value;
 
-fn graftal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_graftal"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("binary runs")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+/// The subcommands completions and the man page must list.
+const COMMANDS: &[&str] = &[
+    "run",
+    "check",
+    "info",
+    "convert",
+    "schema",
+    "lint",
+    "explain",
+    "completions",
+    "man",
+    "manifest",
+    "verify",
+];
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn examples() -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(root().join("rules"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("toml" | "ron")))
-        .collect();
-    files.sort();
-    assert!(files.len() >= 10, "rules/ holds the examples");
-    files
 }
 
 fn validator() -> jsonschema::Validator {
@@ -533,17 +523,7 @@ fn completions_cover_every_command() {
         assert!(o.status.success(), "{shell}: {}", stderr(&o));
         let script = stdout(&o);
         assert!(script.contains(marker), "{shell}");
-        for command in [
-            "run",
-            "check",
-            "info",
-            "convert",
-            "schema",
-            "lint",
-            "explain",
-            "completions",
-            "man",
-        ] {
+        for command in COMMANDS {
             assert!(
                 script.contains(command),
                 "{shell} completion lacks {command}"
@@ -564,17 +544,7 @@ fn man_page_is_roff_listing_every_command() {
         "{page}"
     );
     assert!(page.contains(".TH graftal 1"), "{page}");
-    for command in [
-        "run",
-        "check",
-        "info",
-        "convert",
-        "schema",
-        "lint",
-        "explain",
-        "completions",
-        "man",
-    ] {
+    for command in COMMANDS {
         assert!(
             page.contains(&format!("graftal\\-{command}")),
             "man page lacks {command}"

@@ -618,29 +618,33 @@ impl<'a> Linter<'a> {
                 }
             }
         }
-        for (i, (name, _)) in rules.iter().enumerate() {
-            if !rule_used[i] {
+        let rule_names = rules.iter().map(|(name, _)| name).zip(rule_used);
+        let compound_names = compounds.iter().map(|(name, _)| name).zip(compound_used);
+        let unused = [
+            (
+                "unused-rule",
+                "rule",
+                "included",
+                "include",
+                rule_names.collect::<Vec<_>>(),
+            ),
+            (
+                "unused-compound",
+                "compound",
+                "called",
+                "apply",
+                compound_names.collect(),
+            ),
+        ];
+        for (code, kind, verb, how, names) in unused {
+            for (name, _) in names.into_iter().filter(|(_, used)| !used) {
                 out.push(self.finding(
                     Severity::Warning,
-                    "unused-rule",
+                    code,
                     self.key_span(name, &name.value).as_ref(),
-                    format!("rule `{}` is never included", name.value),
+                    format!("{kind} `{}` is never {verb}", name.value),
                     Some(format!(
-                        "include it with a step `rule = \"{}\"`, or remove it",
-                        name.value
-                    )),
-                ));
-            }
-        }
-        for (i, (name, _)) in compounds.iter().enumerate() {
-            if !compound_used[i] {
-                out.push(self.finding(
-                    Severity::Warning,
-                    "unused-compound",
-                    self.key_span(name, &name.value).as_ref(),
-                    format!("compound `{}` is never called", name.value),
-                    Some(format!(
-                        "apply it with a step `compound = \"{}\"`, or remove it",
+                        "{how} it with a step `{kind} = \"{}\"`, or remove it",
                         name.value
                     )),
                 ));

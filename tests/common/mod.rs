@@ -1,7 +1,8 @@
 //! Helpers shared by the integration tests (each test crate uses some).
 #![allow(dead_code)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use graftal::grammar::{run, RunOptions, RunOutput, StepStats};
 use graftal::rules::compile::{compile, parse};
@@ -34,16 +35,25 @@ pub fn assert_rejected(cases: &[(&str, &str)]) {
     }
 }
 
-/// Compiles and runs rule text with the kernel validated after every step.
-pub fn grow(text: &str) -> RunOutput {
-    let p = program(text).unwrap_or_else(|e| panic!("{}", e.headline()));
+/// Compiles TOML rule text, panicking with the headline on an error.
+pub fn toml(text: &str) -> Program {
+    program(text).unwrap_or_else(|e| panic!("{}", e.headline()))
+}
+
+/// Runs a program with the kernel validated after every step.
+pub fn run_validated(p: &Program, options: RunOptions) -> RunOutput {
     let options = RunOptions {
         validate_each_step: true,
-        ..RunOptions::default()
+        ..options
     };
-    let out = run(&p, &options).unwrap_or_else(|e| panic!("{e}"));
+    let out = run(p, &options).unwrap_or_else(|e| panic!("{e}"));
     out.mesh.validate().unwrap();
     out
+}
+
+/// Compiles and runs rule text with the kernel validated after every step.
+pub fn grow(text: &str) -> RunOutput {
+    run_validated(&toml(text), RunOptions::default())
 }
 
 /// The statistics of the step named `name`.
@@ -52,4 +62,40 @@ pub fn step<'a>(out: &'a RunOutput, name: &str) -> &'a StepStats {
         .iter()
         .find(|s| s.name == name)
         .unwrap_or_else(|| panic!("no step {name}"))
+}
+
+/// Runs the graftal binary in `dir` (relative paths in outputs and
+/// manifests are relative to it).
+pub fn graftal_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_graftal"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("graftal runs")
+}
+
+/// Runs the graftal binary in the project folder.
+pub fn graftal(args: &[&str]) -> Output {
+    graftal_in(Path::new(env!("CARGO_MANIFEST_DIR")), args)
+}
+
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// The example rule files in `rules/`, sorted.
+pub fn examples() -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> =
+        std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("rules"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("toml" | "ron")))
+            .collect();
+    files.sort();
+    assert!(files.len() >= 10, "rules/ holds the examples");
+    files
 }
