@@ -16,7 +16,7 @@ fn program(text: &str, format: SourceFormat, overrides: &[Override]) -> Result<P
         text: text.into(),
     };
     let ast = parse(&file, format)?;
-    compile(&file, format, &ast, overrides, Path::new("."))
+    compile(&file, &ast, overrides, Path::new("."))
 }
 
 fn toml(text: &str) -> Program {

@@ -215,7 +215,7 @@ fn bad_files_fail_validation() {
             text: text.clone(),
         };
         let compiled = compile::parse(&file, SourceFormat::Toml)
-            .and_then(|ast| compile::compile(&file, SourceFormat::Toml, &ast, &[], Path::new(".")));
+            .and_then(|ast| compile::compile(&file, &ast, &[], Path::new(".")));
         assert!(compiled.is_err(), "{what}: graftal accepts it");
         let json = toml_json(&text);
         assert!(
@@ -268,9 +268,8 @@ fn schema_agrees_with_the_compiler_on_every_operator() {
                 name: "t.toml".into(),
                 text: text.clone(),
             };
-            let compiled = compile::parse(&file, SourceFormat::Toml).and_then(|ast| {
-                compile::compile(&file, SourceFormat::Toml, &ast, &[], Path::new("."))
-            });
+            let compiled = compile::parse(&file, SourceFormat::Toml)
+                .and_then(|ast| compile::compile(&file, &ast, &[], Path::new(".")));
             let valid = v.is_valid(&toml_json(&text));
             if compiled.is_ok() != valid {
                 mismatches.push(format!(
@@ -318,11 +317,12 @@ fn lint_finds_each_kind_of_mistake_at_its_location() {
         format!("{f}:38:30: warning[probability-range]: `probability` can be outside [0, 1]: it ranges over [0.5, 1.5]"),
         format!("{f}:41:11: warning[never-true]: `select` condition `(center.x > 1 || center.x < -1) && abs(center.x) < 0.5` can never be true"),
         format!("{f}:42:39: warning[never-true]: `nodes` condition `degree < 0` can never be true"),
-        "fixtures/lint/warnings.toml: 10 warnings".to_owned(),
+        format!("{f}:36:1: warning[unnamed-random-step]: this step draws random values but has no `name`"),
+        "fixtures/lint/warnings.toml: 11 warnings".to_owned(),
     ] {
         assert!(err.contains(&expected), "missing {expected:?} in\n{err}");
     }
-    assert_eq!(err.matches("warning[").count(), 10, "{err}");
+    assert_eq!(err.matches("warning[").count(), 11, "{err}");
     // The parameters used in conditions (`scoped == 0`) are not flagged.
     assert!(!err.contains("scoped"), "{err}");
 
@@ -336,7 +336,7 @@ fn lint_finds_each_kind_of_mistake_at_its_location() {
         "always-true",
     ]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(stderr(&o).contains(": 4 warnings"), "{}", stderr(&o));
+    assert!(stderr(&o).contains(": 5 warnings"), "{}", stderr(&o));
     assert!(!stderr(&o).contains("never-true"));
     let o = graftal(&[
         "lint",

@@ -8,7 +8,7 @@
 //! (NDJSON stats, the manifest) is put back in index order first.
 
 use std::collections::BTreeMap;
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
@@ -16,9 +16,10 @@ use std::time::{Duration, Instant};
 
 use sha2::{Digest, Sha256};
 
+use super::files::{self, Staged};
 use super::manifest::{
-    self, BatchSpec, Counts, ErrorEntry, GridSpec, Manifest, ShardSpec, Status, Summary,
-    VariantEntry,
+    self, BatchSpec, Counts, ErrorEntry, GridSpec, InputEntry, Manifest, ShardSpec, Status,
+    Summary, VariantEntry,
 };
 use super::stats::{self, steps_json};
 use super::{output_format, Failure, EXIT_RUNTIME};
@@ -57,26 +58,28 @@ impl SeedSet {
                     "`{text}`: empty item (expected N, A..B or A..=B, comma-separated)"
                 ));
             }
-            let (start, end) = if let Some((a, b)) = item.split_once("..=") {
-                (
-                    number(a)?,
-                    number(b)?.checked_add(1).ok_or("range end too large")?,
-                )
+            // Inclusive bounds, so that seed 2^64 - 1 is a seed like any other.
+            let (first, last) = if let Some((a, b)) = item.split_once("..=") {
+                (number(a)?, Some(number(b)?))
             } else if let Some((a, b)) = item.split_once("..") {
-                (number(a)?, number(b)?)
+                (number(a)?, number(b)?.checked_sub(1))
             } else {
                 let n = number(item)?;
-                (n, n + 1)
+                (n, Some(n))
             };
-            if start >= end {
+            let Some(last) = last.filter(|&last| first <= last) else {
                 return Err(format!("the range `{item}` is empty"));
-            }
-            if (seeds.len() as u64).saturating_add(end - start) > MAX_VARIANTS {
+            };
+            if (seeds.len() as u64)
+                .saturating_add(last - first)
+                .saturating_add(1)
+                > MAX_VARIANTS
+            {
                 return Err(format!(
                     "`{text}` names more than {MAX_VARIANTS} seeds; split the batch"
                 ));
             }
-            seeds.extend(start..end);
+            seeds.extend(first..=last);
             items.push(item.replace(' ', ""));
         }
         let mut sorted = seeds.clone();
@@ -367,9 +370,10 @@ pub struct RunArgs {
     /// Print a machine-readable summary of the batch on standard output.
     #[arg(long)]
     pub json: bool,
-    /// Text-format variants: write STL and PLY as ASCII.
-    #[arg(long)]
-    pub ascii: bool,
+    #[command(flatten)]
+    pub write: super::WriteArgs,
+    #[command(flatten)]
+    pub input: super::InputArgs,
 }
 
 impl RunArgs {
@@ -411,6 +415,9 @@ struct Produced {
     entry: VariantEntry,
     /// Its stats document (compact for NDJSON), when stats are wanted.
     stats: Option<String>,
+    /// A single run's outputs, written but not yet in place: the stats
+    /// file and the manifest join them, and all are renamed together.
+    staged: Option<Staged>,
     /// Counts for the single-run message.
     faces: usize,
     vertices: usize,
@@ -454,6 +461,9 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         }));
         programs.push(rules::compile_file(&args.rules, &overrides)?);
     }
+    // Every grid combination compiles the same file, so needs the same
+    // files: read once, shared by every variant.
+    let inputs = files::load_inputs(&programs[0], args.input.policy())?;
     let param_names = programs[0].param_names.clone();
     output.check_fields("--output", &param_names)?;
 
@@ -505,7 +515,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             ),
         };
         let path = PathBuf::from(output.render(field));
-        let format = output_format(&path, args.ascii)?;
+        let format = output_format(&path, args.write.ascii)?;
         let stats = match &stats_sink {
             StatsSink::Files(t) => Some(PathBuf::from(t.render(field))),
             _ => None,
@@ -538,6 +548,22 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         }
     };
     check_distinct_paths(&variants, manifest_path.as_deref(), &stats_sink)?;
+    // A batch's own files are written last: find out now whether they can
+    // be, so that a bad path fails before any variant is written.
+    if batch {
+        let own = [
+            manifest_path.as_deref(),
+            match &stats_sink {
+                StatsSink::File(path) => Some(path.as_path()),
+                _ => None,
+            },
+        ];
+        for path in own.into_iter().flatten().filter(|p| p.as_os_str() != "-") {
+            Staged::new()
+                .stage(path, b"")
+                .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))?;
+        }
+    }
 
     let spec = BatchSpec {
         seeds: match (&args.seeds, args.seed) {
@@ -562,12 +588,14 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         max_primitives: args.max_primitives,
         max_evaluations: args.max_evaluations,
         timeout_seconds: args.timeout,
-        ascii: args.ascii,
+        ascii: args.write.ascii,
         timings: args.timings,
+        up_y: args.write.up == super::Up::Y,
     };
     let context = Context {
         batch,
         programs: &programs,
+        inputs: &inputs,
         args: &args,
         want_stats: !matches!(stats_sink, StatsSink::None),
         pretty_stats: matches!(stats_sink, StatsSink::Single(_) | StatsSink::Files(_)),
@@ -579,13 +607,14 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         variants.len(),
     );
     let mut ndjson = Vec::new();
+    let mut stdout_closed = false;
     let entries = run_variants(&context, &variants, &progress, |produced| {
         if let Some(line) = &produced.stats {
             match &stats_sink {
-                StatsSink::Stdout => {
-                    let mut out = std::io::stdout().lock();
-                    let _ = writeln!(out, "{line}");
-                    let _ = out.flush();
+                StatsSink::Stdout if !stdout_closed => {
+                    // A reader that went away (`| head`) stops the batch as
+                    // --fail-fast would: the rest is not run.
+                    stdout_closed = super::write_stdout(format!("{line}\n").as_bytes()).is_err();
                 }
                 StatsSink::File(_) => {
                     ndjson.extend_from_slice(line.as_bytes());
@@ -594,12 +623,13 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                 _ => {}
             }
         }
+        !stdout_closed
     });
     progress.finish();
     let elapsed = started.elapsed();
 
     if let StatsSink::File(path) = &stats_sink {
-        io::atomic::write_atomic(path, &ndjson)
+        files::write_atomic(path, &ndjson)
             .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))?;
     }
 
@@ -607,7 +637,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         entries.into_iter().unzip();
     let summary = Summary::of(&entries);
     let manifest = manifest_path.as_ref().map(|path| {
-        let m = make_manifest(&args, &rule_bytes, spec, total, entries.clone());
+        let m = make_manifest(&args, &rule_bytes, &inputs, spec, total, entries.clone());
         (path, m)
     });
 
@@ -616,19 +646,42 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         if let Some(err) = &entry.error {
             return Err(Failure::Limit(err.exit_code, err.message.clone()));
         }
-        let p = produced[0].as_ref().expect("an ok variant was produced");
+        let mut produced = produced;
+        let p = produced[0].as_mut().expect("an ok variant was produced");
+        let mut staged = p
+            .staged
+            .take()
+            .expect("a single run's outputs wait to be committed");
+        let cannot = |path: &Path, e: std::io::Error| {
+            Failure::Runtime(format!("cannot write {}: {e}", path.display()))
+        };
+        let mut print_stats = None;
         if let (StatsSink::Single(target), Some(doc)) = (&stats_sink, &p.stats) {
             match target {
-                None => println!("{doc}"),
-                Some(path) => io::atomic::write_atomic(path, format!("{doc}\n").as_bytes())
-                    .map_err(|e| {
-                        Failure::Runtime(format!("cannot write {}: {e}", path.display()))
-                    })?,
+                None => print_stats = Some(doc.clone()),
+                Some(path) => staged
+                    .stage(path, format!("{doc}\n").as_bytes())
+                    .map_err(|e| cannot(path, e))?,
             }
         }
+        let mut print_manifest = None;
         if let Some((path, m)) = &manifest {
-            manifest::write(path, m)?;
+            if path.as_os_str() == "-" {
+                print_manifest = Some(m.to_bytes());
+            } else {
+                staged
+                    .stage(path, &m.to_bytes())
+                    .map_err(|e| cannot(path, e))?;
+            }
         }
+        staged.commit().map_err(|(path, e)| cannot(&path, e))?;
+        if let Some(doc) = print_stats {
+            super::write_stdout(format!("{doc}\n").as_bytes())?;
+        }
+        if let Some(bytes) = print_manifest {
+            super::write_stdout(&bytes)?;
+        }
+        let p = produced[0].as_ref().expect("an ok variant was produced");
         if !args.quiet {
             eprintln!(
                 "wrote {} ({} vertices, {} faces, seed {})",
@@ -690,7 +743,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         if args.timings {
             doc["seconds"] = serde_json::json!(elapsed.as_secs_f64());
         }
-        println!("{doc}");
+        super::write_stdout(format!("{doc}\n").as_bytes())?;
     }
     match first_failure {
         None => Ok(()),
@@ -711,6 +764,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
 fn make_manifest(
     args: &RunArgs,
     rule_bytes: &[u8],
+    inputs: &files::Inputs,
     batch: BatchSpec,
     total: usize,
     variants: Vec<VariantEntry>,
@@ -719,6 +773,14 @@ fn make_manifest(
         graftal_version: env!("CARGO_PKG_VERSION").to_string(),
         rules: args.rules.display().to_string(),
         rule_sha256: hex(&Sha256::digest(rule_bytes)),
+        inputs: inputs
+            .hashes
+            .iter()
+            .map(|(path, sha256)| InputEntry {
+                path: path.clone(),
+                sha256: sha256.clone(),
+            })
+            .collect(),
         batch,
         shard: args.shard.map(|s| ShardSpec {
             index: s.index,
@@ -789,6 +851,8 @@ struct Context<'a> {
     /// A batch reports each failure as it comes; a single run returns it.
     batch: bool,
     programs: &'a [Program],
+    /// The files the programs import, read once.
+    inputs: &'a files::Inputs,
     args: &'a RunArgs,
     want_stats: bool,
     /// Stats as pretty documents rather than NDJSON lines.
@@ -802,7 +866,7 @@ fn run_variants(
     context: &Context,
     variants: &[Variant],
     progress: &Progress,
-    mut emit: impl FnMut(&Produced),
+    mut emit: impl FnMut(&Produced) -> bool,
 ) -> Vec<(VariantEntry, Option<Produced>)> {
     let jobs = context
         .args
@@ -847,13 +911,17 @@ fn run_variants(
             }
             slots[k] = Some(produced);
             while let Some(Some(p)) = slots.get(emitted) {
-                emit(p);
+                if !emit(p) {
+                    stop.store(true, Ordering::Relaxed);
+                }
                 emitted += 1;
             }
         }
         // After a fail-fast stop, what ran beyond a gap is still reported.
         for p in slots[emitted..].iter().flatten() {
-            emit(p);
+            if !emit(p) {
+                break;
+            }
         }
     });
     variants
@@ -900,6 +968,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         Produced {
             entry,
             stats: None,
+            staged: None,
             faces: 0,
             vertices: 0,
         }
@@ -909,6 +978,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         max_elements: args.max_primitives,
         max_evaluations: args.max_evaluations,
         deadline: args.timeout.map(|s| started + Duration::from_secs_f64(s)),
+        inputs: std::sync::Arc::clone(&context.inputs.meshes),
         ..RunOptions::default()
     };
     let result = match grammar::run(program, &options) {
@@ -924,26 +994,14 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         }
     };
     let indexed = bridge::mesh_to_indexed(&result.mesh);
-    let bytes = match io::encode(&indexed, v.format) {
-        Ok(bytes) => bytes,
-        Err(e) => {
-            return fail(
-                entry,
-                "failed",
-                EXIT_RUNTIME,
-                format!("{}: {e}", v.output.display()),
-            )
-        }
+    let encoded = match super::encode_for(&indexed, v.format, &args.write, &v.output) {
+        Ok(encoded) => encoded,
+        Err(m) => return fail(entry, "failed", EXIT_RUNTIME, m),
     };
-    let write = |path: &Path, bytes: &[u8]| -> Result<(), String> {
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        }
-        io::atomic::write_atomic(path, bytes)
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))
-    };
-    if let Err(m) = write(&v.output, &bytes) {
+    let bytes = encoded.bytes;
+    let mut staged = Staged::new();
+    if let Err(e) = staged.stage(&v.output, &bytes) {
+        let m = format!("cannot write {}: {e}", v.output.display());
         return fail(entry, "write", EXIT_RUNTIME, m);
     }
     let mesh = &result.mesh;
@@ -958,7 +1016,14 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     let stats = context.want_stats.then(|| {
         let report = mesh.report();
         let gates = stats::gates(mesh, stats::CLOSE_TOLERANCE);
-        let doc = stats::run_stats_doc(program, &result, &report, &gates, args.timings);
+        let doc = stats::run_stats_doc(
+            program,
+            &result,
+            &report,
+            &gates,
+            encoded.dropped_wire_edges,
+            args.timings,
+        );
         if context.pretty_stats {
             serde_json::to_string_pretty(&doc)
         } else {
@@ -972,14 +1037,27 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         .expect("stats serialize")
     });
     if let (Some(path), Some(doc)) = (&v.stats, &stats) {
-        if let Err(m) = write(path, format!("{doc}\n").as_bytes()) {
+        if let Err(e) = staged.stage(path, format!("{doc}\n").as_bytes()) {
+            let m = format!("cannot write {}: {e}", path.display());
             return fail(entry, "write", EXIT_RUNTIME, m);
         }
     }
+    // A batch variant's files land together now; a single run's wait for
+    // its stats and manifest.
+    let staged = if context.batch {
+        if let Err((path, e)) = staged.commit() {
+            let m = format!("cannot write {}: {e}", path.display());
+            return fail(entry, "write", EXIT_RUNTIME, m);
+        }
+        None
+    } else {
+        Some(staged)
+    };
     entry.time_ms = args.timings.then(|| started.elapsed().as_secs_f64() * 1e3);
     Produced {
         entry,
         stats,
+        staged,
         faces: mesh.face_count(),
         vertices: mesh.vert_count(),
     }

@@ -12,7 +12,6 @@ use serde::{Deserialize, Serialize};
 
 use super::stats::StepJson;
 use super::Failure;
-use crate::io;
 
 /// The whole manifest of a batch, or of one shard of it.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
@@ -23,6 +22,10 @@ pub struct Manifest {
     pub rules: String,
     /// SHA-256 of the rule file's bytes.
     pub rule_sha256: String,
+    /// The files the rule file imports, as written, with the SHA-256 of
+    /// their bytes (read once for the whole batch).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<InputEntry>,
     pub batch: BatchSpec,
     /// `null` for a whole batch; the shard a shard manifest covers.
     pub shard: Option<ShardSpec>,
@@ -31,6 +34,14 @@ pub struct Manifest {
     pub summary: Summary,
     /// In ascending `index`.
     pub variants: Vec<VariantEntry>,
+}
+
+/// A file a rule file needs.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct InputEntry {
+    pub path: String,
+    pub sha256: String,
 }
 
 /// What the batch was asked to make: everything that decides its outputs
@@ -51,6 +62,13 @@ pub struct BatchSpec {
     pub timeout_seconds: Option<f64>,
     pub ascii: bool,
     pub timings: bool,
+    /// `--up y` (OBJ, PLY and STL written Y-up); absent for the default.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub up_y: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
@@ -292,13 +310,8 @@ pub fn merge(inputs: &[PathBuf]) -> Result<Manifest, Failure> {
 pub fn write(path: &Path, manifest: &Manifest) -> Result<(), Failure> {
     let bytes = manifest.to_bytes();
     if path.as_os_str() == "-" {
-        use std::io::Write;
-        let mut out = std::io::stdout().lock();
-        return out
-            .write_all(&bytes)
-            .and_then(|()| out.flush())
-            .map_err(|e| Failure::Runtime(format!("cannot write the manifest: {e}")));
+        return super::write_stdout(&bytes);
     }
-    io::atomic::write_atomic(path, &bytes)
+    super::files::write_atomic(path, &bytes)
         .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))
 }

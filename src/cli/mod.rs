@@ -5,6 +5,7 @@
 //! Outputs are written atomically: a temporary file, then a rename.
 
 mod batch;
+mod files;
 mod manifest;
 mod stats;
 mod tooling;
@@ -47,11 +48,14 @@ pub enum Command {
     /// Run a rule file and write the mesh (format from OUT's extension),
     /// or a batch of variants (`--seeds`, `--grid`).
     Run(batch::RunArgs),
-    /// Parse and compile a rule file without running it.
+    /// Parse and compile a rule file, and read the files it imports,
+    /// without running it.
     Check {
         rules: PathBuf,
         #[arg(long = "set", value_name = "NAME=VALUE", value_parser = parse_override)]
         overrides: Vec<Override>,
+        #[command(flatten)]
+        input: InputArgs,
     },
     /// Describe a mesh file: counts, bounds, area, volume, manifoldness.
     Info {
@@ -62,6 +66,8 @@ pub enum Command {
         /// Report vertex pairs at most this far apart (model units).
         #[arg(long, default_value_t = stats::CLOSE_TOLERANCE, value_parser = parse_tolerance)]
         tolerance: f64,
+        #[command(flatten)]
+        input: InputArgs,
     },
     /// Regenerate rule files and compare with stored goldens (stats JSON,
     /// and OBJ meshes where present); exit 1 on a difference.
@@ -73,11 +79,13 @@ pub enum Command {
     },
     /// Convert a mesh between formats (by extension).
     Convert {
-        input: PathBuf,
+        #[arg(value_name = "INPUT")]
+        source: PathBuf,
         output: PathBuf,
-        /// Write STL and PLY as ASCII.
-        #[arg(long)]
-        ascii: bool,
+        #[command(flatten)]
+        write: WriteArgs,
+        #[command(flatten)]
+        input: InputArgs,
     },
     /// Print the JSON Schema of rule files (for editors; see docs/tooling.md).
     Schema,
@@ -108,6 +116,8 @@ pub enum Command {
         json: bool,
         #[arg(long, default_value_t = grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
         max_primitives: usize,
+        #[command(flatten)]
+        input: InputArgs,
     },
     /// Print a shell completion script (bash, zsh, fish, elvish, powershell).
     Completions {
@@ -133,6 +143,107 @@ pub enum ManifestAction {
         #[arg(short, long, value_name = "FILE")]
         output: Option<PathBuf>,
     },
+}
+
+/// How input files are read (`check`, `run`, `info`, `convert`, `explain`).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct InputArgs {
+    /// Follow file references that leave the directory of the file that
+    /// makes them (absolute paths, `..`, symbolic links out): a rule
+    /// file's imports, a `.gltf`'s buffers. Off by default, so a file
+    /// from elsewhere cannot make graftal read arbitrary files.
+    #[arg(long)]
+    pub allow_outside_paths: bool,
+    /// Merge vertices at most DISTANCE apart after reading a mesh (0, the
+    /// default when the flag has no value, merges identical positions):
+    /// for files with one vertex per face corner, such as OBJ and PLY
+    /// exported after a glTF import. Off by default.
+    #[arg(long, value_name = "DISTANCE", num_args = 0..=1, default_missing_value = "0", value_parser = parse_tolerance)]
+    pub weld: Option<f64>,
+}
+
+impl InputArgs {
+    pub(crate) fn policy(&self) -> files::InputPolicy {
+        files::InputPolicy {
+            allow_outside: self.allow_outside_paths,
+        }
+    }
+
+    /// Reads a mesh file as these options say.
+    fn read_mesh(&self, path: &Path) -> Result<io::IndexedMesh, Failure> {
+        let mesh = files::read_mesh(path, self.policy()).map_err(Failure::Input)?;
+        Ok(match self.weld {
+            Some(distance) => mesh.welded(distance),
+            None => mesh,
+        })
+    }
+}
+
+/// Which axis is up in OBJ, PLY and STL output (glTF is always +Y up).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Up {
+    /// +Y up: (x, y, z) written as (x, z, −y), as glTF, Blender's OBJ
+    /// importer and most engines expect.
+    Y,
+    /// +Z up, graftal's own frame (the default).
+    #[default]
+    Z,
+}
+
+/// How meshes are written (`run`, `convert`).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct WriteArgs {
+    /// Write STL and PLY as ASCII.
+    #[arg(long)]
+    pub ascii: bool,
+    /// The up axis of OBJ, PLY and STL output (glTF is +Y up always).
+    #[arg(long, value_enum, default_value_t = Up::Z)]
+    pub up: Up,
+    /// Fail (exit 1) instead of warning when the output format cannot
+    /// hold part of the mesh (STL has no wire edges).
+    #[arg(long)]
+    pub strict: bool,
+}
+
+/// A mesh encoded for its file, and what the format could not hold.
+pub(crate) struct Encoded {
+    pub bytes: Vec<u8>,
+    pub dropped_wire_edges: usize,
+}
+
+/// Encodes `mesh` for `path` as `write` says. STL keeps no wire edges: a
+/// warning names how many and what to do (`--strict`: an error).
+pub(crate) fn encode_for(
+    mesh: &io::IndexedMesh,
+    format: io::MeshFormat,
+    write: &WriteArgs,
+    path: &Path,
+) -> Result<Encoded, String> {
+    let stl = matches!(format, io::MeshFormat::StlAscii | io::MeshFormat::StlBinary);
+    let dropped_wire_edges = if stl { mesh.lines.len() } else { 0 };
+    if dropped_wire_edges > 0 {
+        let message = format!(
+            "{}: STL cannot hold the {dropped_wire_edges} wire edges of this mesh (a skeleton's lines); skin them (`skin = {{}}`) or write OBJ, PLY or glTF, which keep lines",
+            path.display()
+        );
+        if write.strict {
+            return Err(message);
+        }
+        eprintln!("warning: {message}; left out");
+    }
+    let is_gltf = matches!(format, io::MeshFormat::Gltf | io::MeshFormat::Glb);
+    let bytes = if write.up == Up::Y && !is_gltf {
+        let mut turned = mesh.clone();
+        turned.z_up_to_y_up();
+        io::encode(&turned, format)
+    } else {
+        io::encode(mesh, format)
+    }
+    .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(Encoded {
+        bytes,
+        dropped_wire_edges,
+    })
 }
 
 fn parse_override(text: &str) -> Result<Override, String> {
@@ -166,6 +277,9 @@ pub enum Failure {
     Limit(u8, String),
     /// Variants of a batch failed; the code is the first failure's.
     Batch(u8, String),
+    /// Standard output was closed (`graftal … | head`): stop quietly,
+    /// status 0, as ripgrep and coreutils' tools do.
+    PipeClosed,
 }
 
 impl Failure {
@@ -174,6 +288,7 @@ impl Failure {
             Failure::Rule(_) | Failure::Input(_) => EXIT_INPUT,
             Failure::Runtime(_) => EXIT_RUNTIME,
             Failure::Limit(code, _) | Failure::Batch(code, _) => *code,
+            Failure::PipeClosed => 0,
         }
     }
 
@@ -181,21 +296,10 @@ impl Failure {
         let mut err = std::io::stderr().lock();
         match self {
             Failure::Rule(e) => {
+                let color =
+                    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none();
                 let _ = writeln!(err, "error: {}", e.headline());
-                let theme =
-                    if std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none() {
-                        miette::GraphicalTheme::unicode()
-                    } else {
-                        miette::GraphicalTheme::unicode_nocolor()
-                    };
-                let mut rendered = String::new();
-                let handler = miette::GraphicalReportHandler::new_themed(theme);
-                if handler
-                    .render_report(&mut rendered, e.as_ref() as &dyn miette::Diagnostic)
-                    .is_ok()
-                {
-                    let _ = write!(err, "{rendered}");
-                }
+                let _ = write!(err, "{}", e.render(color));
             }
             Failure::Input(m)
             | Failure::Runtime(m)
@@ -203,6 +307,7 @@ impl Failure {
             | Failure::Batch(_, m) => {
                 let _ = writeln!(err, "error: {m}");
             }
+            Failure::PipeClosed => {}
         }
     }
 }
@@ -210,6 +315,18 @@ impl Failure {
 impl From<RuleError> for Failure {
     fn from(e: RuleError) -> Self {
         Failure::Rule(Box::new(e))
+    }
+}
+
+/// Writes to standard output; a closed pipe is [`Failure::PipeClosed`].
+pub(crate) fn write_stdout(bytes: &[u8]) -> Result<(), Failure> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(bytes).and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(Failure::PipeClosed),
+        Err(e) => Err(Failure::Runtime(format!(
+            "cannot write to standard output: {e}"
+        ))),
     }
 }
 
@@ -222,17 +339,6 @@ fn output_format(path: &Path, ascii: bool) -> Result<io::MeshFormat, Failure> {
     })
 }
 
-fn write_output(
-    path: &Path,
-    format: io::MeshFormat,
-    mesh: &io::IndexedMesh,
-) -> Result<(), Failure> {
-    let bytes = io::encode(mesh, format)
-        .map_err(|e| Failure::Runtime(format!("{}: {e}", path.display())))?;
-    io::atomic::write_atomic(path, &bytes)
-        .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))
-}
-
 pub fn execute(command: Command) -> Result<(), Failure> {
     match command {
         Command::Run(args) => batch::run(args),
@@ -243,41 +349,53 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let merged = manifest::merge(&shards)?;
             manifest::write(output.as_deref().unwrap_or(Path::new("-")), &merged)
         }
-        Command::Check { rules, overrides } => {
+        Command::Check {
+            rules,
+            overrides,
+            input,
+        } => {
             let program = rules::compile_file(&rules, &overrides)?;
-            println!(
-                "{}: ok ({} parameters, {} steps)",
-                program.file,
-                program.param_names.len(),
-                program.steps.len()
-            );
-            Ok(())
+            files::load_inputs(&program, input.policy())?;
+            write_stdout(
+                format!(
+                    "{}: ok ({} parameters, {} steps)\n",
+                    program.file,
+                    program.param_names.len(),
+                    program.steps.len()
+                )
+                .as_bytes(),
+            )
         }
         Command::Info {
             mesh,
             json,
             tolerance,
+            input,
         } => {
-            let indexed = io::read_mesh(&mesh).map_err(|e| Failure::Input(e.to_string()))?;
+            let indexed = input.read_mesh(&mesh)?;
             let (kernel_mesh, import) = bridge::mesh_from_indexed_report(&indexed)
                 .map_err(|e| Failure::Input(format!("{}: {e}", mesh.display())))?;
             let report = kernel_mesh.report();
             let gates = stats::gates(&kernel_mesh, tolerance);
-            if json {
-                println!("{}", stats::info_json(&mesh, &report, &gates, &import));
+            let text = if json {
+                format!("{}\n", stats::info_json(&mesh, &report, &gates, &import))
             } else {
-                print!("{}", stats::info_text(&mesh, &report, &gates, &import));
-            }
-            Ok(())
+                stats::info_text(&mesh, &report, &gates, &import)
+            };
+            write_stdout(text.as_bytes())
         }
         Command::Convert {
-            input,
+            source,
             output,
-            ascii,
+            write,
+            input,
         } => {
-            let format = output_format(&output, ascii)?;
-            let indexed = io::read_mesh(&input).map_err(|e| Failure::Input(e.to_string()))?;
-            write_output(&output, format, &indexed)
+            let format = output_format(&output, write.ascii)?;
+            let indexed = input.read_mesh(&source)?;
+            let encoded =
+                encode_for(&indexed, format, &write, &output).map_err(Failure::Runtime)?;
+            files::write_atomic(&output, &encoded.bytes)
+                .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", output.display())))
         }
         Command::Schema => tooling::schema(),
         Command::Lint {
@@ -291,7 +409,8 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             overrides,
             json,
             max_primitives,
-        } => tooling::explain(&rules, seed, &overrides, json, max_primitives),
+            input,
+        } => tooling::explain(&rules, seed, &overrides, json, max_primitives, &input),
         Command::Completions { shell } => tooling::completions(shell),
         Command::Man { dir } => tooling::man(dir.as_deref()),
     }

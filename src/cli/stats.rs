@@ -8,28 +8,44 @@ use serde::{Deserialize, Serialize};
 
 use crate::grammar::{RunOutput, StepStats};
 use crate::io::bridge::ImportReport;
-use crate::kernel::intersect::{close_vertices, self_intersections};
-use crate::kernel::{Mesh, MeshReport};
+use glam::DVec3;
+
+use crate::kernel::intersect::{
+    count_close_points, self_intersection_search, PairLimits, PairSearch,
+};
+use crate::kernel::{FaceId, Mesh, MeshReport};
 use crate::rules::Program;
 
 /// Tolerance of the close-vertex gate when none is given (model units).
 pub const CLOSE_TOLERANCE: f64 = 1e-6;
 
 /// Mesh checks that search the whole mesh (BVH and hash grid; about
-/// 0.1 s per 10⁵ triangles), reported beside the [`MeshReport`].
+/// 0.1 s per 10⁵ triangles), reported beside the [`MeshReport`]. Both
+/// searches are bounded (see [`PairLimits::for_items`]): on degenerate
+/// input they stop, and say so, instead of running out of memory.
 pub struct Gates {
     /// Pairs of faces whose triangles intersect other than along shared
-    /// vertices and edges.
-    pub self_intersecting_face_pairs: usize,
+    /// vertices and edges (a lower bound unless `complete`), and the
+    /// first of them (at most 1,000, sorted).
+    pub self_intersections: PairSearch<(FaceId, FaceId)>,
     /// Pairs of distinct vertices at most `close_tolerance` apart.
-    pub close_vertex_pairs: usize,
+    pub close_vertices: PairSearch<()>,
     pub close_tolerance: f64,
 }
 
+impl Gates {
+    /// Whether both searches ran to the end.
+    pub fn complete(&self) -> bool {
+        self.self_intersections.complete && self.close_vertices.complete
+    }
+}
+
 pub fn gates(mesh: &Mesh, close_tolerance: f64) -> Gates {
+    let points: Vec<DVec3> = mesh.vert_ids().map(|v| mesh.position(v)).collect();
+    let budget = PairLimits::for_items(points.len()).max_tests;
     Gates {
-        self_intersecting_face_pairs: self_intersections(mesh).len(),
-        close_vertex_pairs: close_vertices(mesh, close_tolerance).len(),
+        self_intersections: self_intersection_search(mesh, PairLimits::for_items),
+        close_vertices: count_close_points(&points, close_tolerance, budget),
         close_tolerance,
     }
 }
@@ -53,9 +69,17 @@ pub struct MeshJson {
     consistently_oriented: bool,
     components: usize,
     euler_characteristic: i64,
-    self_intersecting_face_pairs: usize,
-    close_vertex_pairs: usize,
+    self_intersecting_face_pairs: u64,
+    close_vertex_pairs: u64,
     close_tolerance: f64,
+    /// `false` when a search stopped on degenerate input: the two counts
+    /// are then lower bounds.
+    #[serde(skip_serializing_if = "is_true")]
+    searches_complete: bool,
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 fn mesh_json(r: &MeshReport, g: &Gates) -> MeshJson {
@@ -77,9 +101,10 @@ fn mesh_json(r: &MeshReport, g: &Gates) -> MeshJson {
         consistently_oriented: r.consistently_oriented,
         components: r.components,
         euler_characteristic: r.euler_characteristic,
-        self_intersecting_face_pairs: g.self_intersecting_face_pairs,
-        close_vertex_pairs: g.close_vertex_pairs,
+        self_intersecting_face_pairs: g.self_intersections.count,
+        close_vertex_pairs: g.close_vertices.count,
         close_tolerance: g.close_tolerance,
+        searches_complete: g.complete(),
     }
 }
 
@@ -138,7 +163,14 @@ pub struct RunJson<'a> {
     seed: u64,
     params: Vec<(&'a str, f64)>,
     mesh: MeshJson,
+    /// Wire edges the output format could not hold (STL); absent when none.
+    #[serde(skip_serializing_if = "is_zero")]
+    dropped_wire_edges: usize,
     steps: Vec<StepJson>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// A batch's NDJSON stats line: which variant, then its stats document.
@@ -157,9 +189,11 @@ pub fn run_stats_doc<'a>(
     run: &'a RunOutput,
     report: &MeshReport,
     gates: &Gates,
+    dropped_wire_edges: usize,
     timings: bool,
 ) -> RunJson<'a> {
     RunJson {
+        dropped_wire_edges,
         graftal_version: env!("CARGO_PKG_VERSION"),
         rules: &program.file,
         rule_hash: format!("{:016x}", program.rule_hash),
@@ -176,6 +210,8 @@ struct InfoJson<'a> {
     degenerate_faces_dropped: usize,
     #[serde(flatten)]
     mesh: MeshJson,
+    /// The first self-intersecting face pairs (by face index), at most 1,000.
+    first_self_intersecting_face_pairs: Vec<[usize; 2]>,
 }
 
 pub fn info_json(path: &Path, report: &MeshReport, gates: &Gates, import: &ImportReport) -> String {
@@ -184,9 +220,18 @@ pub fn info_json(path: &Path, report: &MeshReport, gates: &Gates, import: &Impor
         file: &file,
         degenerate_faces_dropped: import.degenerate_faces,
         mesh: mesh_json(report, gates),
+        first_self_intersecting_face_pairs: gates
+            .self_intersections
+            .pairs
+            .iter()
+            .map(|(a, b)| [a.index(), b.index()])
+            .collect(),
     })
     .expect("info serializes")
 }
+
+/// Self-intersecting face pairs `info` lists in its text form.
+const INFO_PAIRS_SHOWN: usize = 10;
 
 pub fn info_text(path: &Path, r: &MeshReport, g: &Gates, import: &ImportReport) -> String {
     let mut s = String::new();
@@ -217,14 +262,36 @@ pub fn info_text(path: &Path, r: &MeshReport, g: &Gates, import: &ImportReport) 
     s += &format!("oriented:           {}\n", yes(r.consistently_oriented));
     s += &format!("components:         {}\n", r.components);
     s += &format!("euler:              {}\n", r.euler_characteristic);
+    let at_least = |complete: bool| if complete { "" } else { "at least " };
     s += &format!(
-        "self-intersections: {} face pairs\n",
-        g.self_intersecting_face_pairs
+        "self-intersections: {}{} face pairs\n",
+        at_least(g.self_intersections.complete),
+        g.self_intersections.count
     );
+    if !g.self_intersections.pairs.is_empty() {
+        let shown: Vec<String> = g
+            .self_intersections
+            .pairs
+            .iter()
+            .take(INFO_PAIRS_SHOWN)
+            .map(|(a, b)| format!("{}–{}", a.index(), b.index()))
+            .collect();
+        let more = if g.self_intersections.count > shown.len() as u64 {
+            ", …"
+        } else {
+            ""
+        };
+        s += &format!("                    faces {}{more}\n", shown.join(", "));
+    }
     s += &format!(
-        "close vertices:     {} pairs within {}\n",
-        g.close_vertex_pairs, g.close_tolerance
+        "close vertices:     {}{} pairs within {}\n",
+        at_least(g.close_vertices.complete),
+        g.close_vertices.count,
+        g.close_tolerance
     );
+    if !g.complete() {
+        s += "                    (a search stopped early on degenerate input: counts are lower bounds)\n";
+    }
     if import.degenerate_faces > 0 {
         s += &format!(
             "degenerate faces:   {} dropped on import\n",

@@ -16,8 +16,7 @@ use crate::rules::{self, schema, Override, Program};
 
 /// `graftal schema`: the JSON Schema of rule files on standard output.
 pub fn schema() -> Result<(), Failure> {
-    print!("{}", schema::schema_text());
-    Ok(())
+    super::write_stdout(schema::schema_text().as_bytes())
 }
 
 /// `graftal lint`: findings on standard error, one summary line per file.
@@ -101,9 +100,9 @@ fn plural(n: usize) -> &'static str {
 /// `graftal completions SHELL`.
 pub fn completions(shell: clap_complete::Shell) -> Result<(), Failure> {
     let mut cmd = Cli::command();
-    let mut out = std::io::stdout().lock();
-    clap_complete::generate(shell, &mut cmd, "graftal", &mut out);
-    Ok(())
+    let mut script = Vec::new();
+    clap_complete::generate(shell, &mut cmd, "graftal", &mut script);
+    super::write_stdout(&script)
 }
 
 /// `graftal man [--dir DIR]`: the man page (roff) on standard output, or
@@ -116,10 +115,7 @@ pub fn man(dir: Option<&Path>) -> Result<(), Failure> {
             clap_mangen::Man::new(cmd)
                 .render(&mut buffer)
                 .map_err(|e| Failure::Runtime(format!("cannot render the man page: {e}")))?;
-            std::io::stdout()
-                .lock()
-                .write_all(&buffer)
-                .map_err(|e| Failure::Runtime(format!("cannot write the man page: {e}")))
+            super::write_stdout(&buffer)
         }
         Some(dir) => {
             if !dir.is_dir() {
@@ -159,6 +155,9 @@ struct ExplainStep<'a> {
     shared: usize,
     rejected_by_intersection: usize,
     cancelled: usize,
+    /// Of `cancelled`, compound applications cancelled by a step that is
+    /// not itself a compound call.
+    cancelled_compounds: usize,
     merged: usize,
     created_vertices: usize,
     created_edges: usize,
@@ -188,11 +187,14 @@ pub fn explain(
     overrides: &[Override],
     json: bool,
     max_primitives: usize,
+    input: &super::InputArgs,
 ) -> Result<(), Failure> {
     let program = rules::compile_file(rules_path, overrides)?;
+    let inputs = super::files::load_inputs(&program, input.policy())?;
     let options = RunOptions {
         seed,
         max_elements: max_primitives,
+        inputs: inputs.meshes,
         ..RunOptions::default()
     };
     let result = grammar::run(&program, &options)
@@ -213,15 +215,15 @@ pub fn explain(
         faces: report.faces,
         steps,
     };
-    if json {
-        println!(
-            "{}",
+    let text = if json {
+        format!(
+            "{}\n",
             serde_json::to_string_pretty(&doc).expect("explain serializes")
-        );
+        )
     } else {
-        print!("{}", explain_text(&doc));
-    }
-    Ok(())
+        explain_text(&doc)
+    };
+    super::write_stdout(text.as_bytes())
 }
 
 /// Program steps in running order (a compound's steps after its first
@@ -294,6 +296,7 @@ fn explain_steps<'a>(program: &'a Program, stats: &'a [StepStats]) -> Vec<Explai
                 shared: get(|s| s.shared),
                 rejected_by_intersection: get(|s| s.rejected),
                 cancelled: get(|s| s.cancelled),
+                cancelled_compounds: get(|s| s.cancelled_compounds),
                 merged: get(|s| s.merged),
                 created_vertices: get(|s| s.created.verts),
                 created_edges: get(|s| s.created.edges),
@@ -413,12 +416,24 @@ fn explain_text(doc: &ExplainJson) -> String {
             s += &format!("{indent}matched, not applied: {}\n", left.join(", "));
         }
         if step.cancelled > 0 {
-            let what = if step.op == "compound" {
-                "compound applications rolled back (cancel_compound)"
+            let (compounds, rules) = if step.op == "compound" {
+                (step.cancelled, 0)
             } else {
-                "rule applications rolled back (cancel_rule)"
+                (
+                    step.cancelled_compounds,
+                    step.cancelled - step.cancelled_compounds,
+                )
             };
-            s += &format!("{indent}cancelled: {} {what}\n", step.cancelled);
+            if compounds > 0 {
+                s += &format!(
+                    "{indent}cancelled: {compounds} compound applications rolled back (cancel_compound)\n"
+                );
+            }
+            if rules > 0 {
+                s += &format!(
+                    "{indent}cancelled: {rules} rule applications rolled back (cancel_rule)\n"
+                );
+            }
         }
         if step.merged > 0 {
             s += &format!(

@@ -54,6 +54,8 @@ pub struct VerifyArgs {
     /// No success line.
     #[arg(short, long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub input: super::InputArgs,
 }
 
 /// One variant regenerated: its golden stem and what it makes.
@@ -98,6 +100,7 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
     let mut checked = 0;
     let mut blessed = 0;
     for ((stem, _), program) in stems.iter().zip(&programs) {
+        let inputs = super::files::load_inputs(program, args.input.policy())?;
         let seeds: Vec<Option<u64>> = match &args.seeds {
             Some(set) => set.seeds.iter().map(|&s| Some(s)).collect(),
             None => vec![None],
@@ -107,7 +110,7 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
                 Some(s) if args.seeds.is_some() => format!("{stem}-{s}"),
                 _ => stem.clone(),
             };
-            let fresh = regenerate(program, seed, stem)?;
+            let fresh = regenerate(program, &inputs, seed, stem)?;
             let json_path = args.golden.join(format!("{}.json", fresh.stem));
             let obj_path = args.golden.join(format!("{}.obj", fresh.stem));
             if args.bless {
@@ -168,9 +171,15 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
     Ok(())
 }
 
-fn regenerate(program: &rules::Program, seed: Option<u64>, stem: String) -> Result<Fresh, Failure> {
+fn regenerate(
+    program: &rules::Program,
+    inputs: &super::files::Inputs,
+    seed: Option<u64>,
+    stem: String,
+) -> Result<Fresh, Failure> {
     let options = RunOptions {
         seed,
+        inputs: std::sync::Arc::clone(&inputs.meshes),
         ..RunOptions::default()
     };
     let result =
@@ -178,7 +187,7 @@ fn regenerate(program: &rules::Program, seed: Option<u64>, stem: String) -> Resu
     let report = result.mesh.report();
     let gates = stats::gates(&result.mesh, stats::CLOSE_TOLERANCE);
     let mut stats = serde_json::to_string_pretty(&stats::run_stats_doc(
-        program, &result, &report, &gates, false,
+        program, &result, &report, &gates, 0, false,
     ))
     .expect("stats serialize");
     stats.push('\n');
@@ -188,7 +197,7 @@ fn regenerate(program: &rules::Program, seed: Option<u64>, stem: String) -> Resu
 }
 
 fn write(path: &Path, bytes: &[u8]) -> Result<(), Failure> {
-    io::atomic::write_atomic(path, bytes)
+    super::files::write_atomic(path, bytes)
         .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))
 }
 

@@ -4,6 +4,7 @@
 //! the generation it reads, and runs its operator, G³ command or compound
 //! command on them.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
@@ -12,7 +13,7 @@ use thiserror::Error;
 
 use super::intersect::Guard;
 use super::merge::Merger;
-use crate::io;
+use crate::io::{self, IndexedMesh};
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
@@ -50,6 +51,9 @@ pub struct RunOptions {
     /// evaluations of conditions and per-primitive parameters: the bound
     /// on expression work, deterministic unlike a timeout.
     pub max_evaluations: u64,
+    /// The program's [`Program::resources`], read by the caller, by index
+    /// (shared by every variant of a batch).
+    pub inputs: Arc<[Arc<IndexedMesh>]>,
 }
 
 /// Default `--max-evaluations`.
@@ -67,6 +71,7 @@ impl Default for RunOptions {
             validate_each_step: false,
             deadline: None,
             max_evaluations: DEFAULT_MAX_EVALUATIONS,
+            inputs: Arc::from(Vec::new()),
         }
     }
 }
@@ -106,8 +111,12 @@ pub struct StepStats {
     pub rejected: usize,
     /// Applications rolled back: for a compound step, its scopes cancelled
     /// by `cancel_compound`; for a step, the rule applications it
-    /// cancelled by `cancel_rule`.
+    /// cancelled by `cancel_rule` or `cancel_compound`.
     pub cancelled: usize,
+    /// Of `cancelled`, for a step that is not a compound call: the
+    /// compound applications it cancelled (`cancel_compound`); the rest
+    /// were rule applications.
+    pub cancelled_compounds: usize,
     pub created: CreatedCounts,
     pub elapsed: Duration,
 }
@@ -145,8 +154,15 @@ pub struct RunError {
     pub message: String,
 }
 
+/// `Runner::product_slot` of a step whose products no step reads.
+const NO_SLOT: u32 = u32::MAX;
+
 struct Runner<'p> {
     program: &'p Program,
+    /// Set by a kernel operator that applied to fewer elements than it was
+    /// given (`dissolve_edges` skips edges it cannot dissolve).
+    applied_override: std::cell::Cell<Option<usize>>,
+    inputs: Arc<[Arc<IndexedMesh>]>,
     seed: u64,
     max_elements: usize,
     deadline: Option<Instant>,
@@ -157,9 +173,14 @@ struct Runner<'p> {
     validate_each_step: bool,
     /// Parameter values, then property values of the current element.
     slots: Vec<f64>,
-    /// Products of each step's latest run, by uid (for `from`).
+    /// Products of the latest run of each step some `from` reads, by the
+    /// step's slot in `product_slot`.
     created: Vec<Selection>,
-    stats: Vec<Option<StepStats>>,
+    /// By uid: the step's slot in `created`, or `NO_SLOT` when no step reads
+    /// its products (most steps: the others cost nothing to remember).
+    product_slot: Vec<u32>,
+    /// By uid; boxed, since most of a large program's steps may never run.
+    stats: Vec<Option<Box<StepStats>>>,
     /// Innermost scope last.
     scopes: Vec<Scope>,
     /// Uids of the compound steps being run, innermost last.
@@ -192,7 +213,7 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         mesh,
         seed: runner.seed,
         params,
-        steps: runner.stats.into_iter().flatten().collect(),
+        steps: runner.stats.into_iter().flatten().map(|s| *s).collect(),
     })
 }
 
@@ -213,8 +234,10 @@ pub fn parameter_values(
 
 impl<'p> Runner<'p> {
     fn new(program: &'p Program, options: &RunOptions) -> Self {
-        Runner {
+        let mut runner = Runner {
             program,
+            applied_override: std::cell::Cell::new(None),
+            inputs: Arc::clone(&options.inputs),
             seed: options.seed.unwrap_or(program.default_seed),
             max_elements: options.max_elements,
             deadline: options.deadline,
@@ -223,7 +246,8 @@ impl<'p> Runner<'p> {
             shuffle: options.shuffle_visits,
             validate_each_step: options.validate_each_step,
             slots: vec![0.0; program.param_names.len()],
-            created: vec![Selection::new(); program.step_count],
+            created: Vec::new(),
+            product_slot: Vec::new(),
             stats: vec![None; program.step_count],
             scopes: Vec::new(),
             calls: Vec::new(),
@@ -232,6 +256,27 @@ impl<'p> Runner<'p> {
             reactions: vec![program.on_intersection],
             merger: Merger::new(),
             guard: Guard::new(),
+        };
+        runner.product_slot = vec![NO_SLOT; program.step_count];
+        let every_step = program
+            .steps
+            .iter()
+            .chain(program.compounds.iter().flat_map(|c| &c.steps));
+        for uid in every_step.filter_map(|s| s.from.as_ref()).flatten() {
+            let slot = &mut runner.product_slot[*uid as usize];
+            if *slot == NO_SLOT {
+                *slot = runner.created.len() as u32;
+                runner.created.push(Selection::new());
+            }
+        }
+        runner
+    }
+
+    /// Remembers what step `uid` made, if a later step reads it.
+    fn remember(&mut self, uid: u32, made: Selection) {
+        let slot = self.product_slot[uid as usize];
+        if slot != NO_SLOT {
+            self.created[slot as usize] = made;
         }
     }
 
@@ -318,6 +363,7 @@ struct Tally {
     merged: usize,
     rejected: usize,
     cancelled: usize,
+    cancelled_compounds: usize,
 }
 
 impl Runner<'_> {
@@ -412,7 +458,7 @@ impl Runner<'_> {
                         snapshot.expect("snapshots are kept when cancelling is possible");
                     self.restore(mesh, snapshot);
                     while i < steps.len() && steps[i].rule_instances.contains(&instance) {
-                        self.created[steps[i].uid as usize] = Selection::new();
+                        self.remember(steps[i].uid, Selection::new());
                         i += 1;
                     }
                 }
@@ -465,26 +511,29 @@ impl Runner<'_> {
         }
         self.check_size(mesh, step, 0)?;
         self.tally(step, &tally, &made, started);
-        self.created[step.uid as usize] = made;
+        self.remember(step.uid, made);
         Ok(())
     }
 
     /// Adds one run of `step` to its statistics.
     fn tally(&mut self, step: &Step, tally: &Tally, made: &Selection, started: Instant) {
-        let stats = self.stats[step.uid as usize].get_or_insert_with(|| StepStats {
-            name: step.name.clone(),
-            op: step.op.name(),
-            runs: 0,
-            candidates: 0,
-            matched: 0,
-            applied: 0,
-            skipped: 0,
-            shared: 0,
-            merged: 0,
-            rejected: 0,
-            cancelled: 0,
-            created: CreatedCounts::default(),
-            elapsed: Duration::ZERO,
+        let stats = self.stats[step.uid as usize].get_or_insert_with(|| {
+            Box::new(StepStats {
+                name: step.name.clone(),
+                op: step.op.name(),
+                runs: 0,
+                candidates: 0,
+                matched: 0,
+                applied: 0,
+                skipped: 0,
+                shared: 0,
+                merged: 0,
+                rejected: 0,
+                cancelled: 0,
+                cancelled_compounds: 0,
+                created: CreatedCounts::default(),
+                elapsed: Duration::ZERO,
+            })
         });
         stats.runs += 1;
         stats.candidates += tally.candidates;
@@ -495,6 +544,7 @@ impl Runner<'_> {
         stats.merged += tally.merged;
         stats.rejected += tally.rejected;
         stats.cancelled += tally.cancelled;
+        stats.cancelled_compounds += tally.cancelled_compounds;
         let c = counts(made);
         stats.created.verts += c.verts;
         stats.created.edges += c.edges;
@@ -513,6 +563,7 @@ impl Runner<'_> {
         if step.op.is_create() {
             self.merger.invalidate();
             self.guard.invalidate();
+            self.admit_kernel_op(mesh, step, &[])?;
             return Ok(self
                 .apply(mesh, step, &[])
                 .map_err(|m| step_error(step, RunErrorKind::Failed, m))?);
@@ -544,9 +595,15 @@ impl Runner<'_> {
                 // A kernel operator may move, make or remove anything.
                 self.merger.invalidate();
                 self.guard.invalidate();
-                Ok(self
+                self.admit_kernel_op(mesh, step, &matched)?;
+                let made = self
                     .apply(mesh, step, &matched)
-                    .map_err(|m| step_error(step, RunErrorKind::Failed, m))?)
+                    .map_err(|m| step_error(step, RunErrorKind::Failed, m))?;
+                // An operator that applies to fewer than it was given says so.
+                if let Some(applied) = self.applied_override.take() {
+                    tally.applied = applied;
+                }
+                Ok(made)
             }
         }
     }
@@ -635,7 +692,7 @@ impl Runner<'_> {
         if let Some(uids) = &step.from {
             let mut ids: Vec<usize> = Vec::new();
             for &uid in uids {
-                let s = &self.created[uid as usize];
+                let s = &self.created[self.product_slot[uid as usize] as usize];
                 match step.domain {
                     Domain::Vert => ids.extend(s.verts.iter().map(|v| v.index())),
                     Domain::Edge => ids.extend(s.edges.iter().map(|e| e.index())),
@@ -759,6 +816,7 @@ impl Runner<'_> {
                     OnIntersection::Error => return Err(Stop::Fail(error())),
                     OnIntersection::CancelCompound => {
                         tally.cancelled += 1;
+                        tally.cancelled_compounds += 1;
                         return Err(Stop::Cancel(CancelLevel::Compound, error()));
                     }
                     OnIntersection::CancelRule => {
@@ -973,6 +1031,127 @@ impl Runner<'_> {
             Offset::Normal(d) => ExtrudeOffset::Normal(self.scalar(d)),
         }
     }
+    /// At most how many primitives (vertices + edges + faces) the step's
+    /// kernel operator will create, from its parameters and selection, so
+    /// that the primitive limit refuses it before anything is allocated.
+    /// Saturating: a parameter too large to count predicts `u64::MAX`.
+    fn predicted_growth(&self, mesh: &Mesh, step: &Step, selected: &[usize]) -> u64 {
+        use ops::select;
+        let n = |e: &crate::rules::expr::Expr| -> u64 {
+            let x = libm::round(self.scalar(e));
+            if x.is_nan() || x <= 0.0 {
+                0
+            } else if x >= u64::MAX as f64 {
+                u64::MAX
+            } else {
+                x as u64
+            }
+        };
+        let by_domain = selection_of(step.domain, selected);
+        let full = || match step.domain {
+            Domain::Vert => select::select_from_verts(mesh, &by_domain.verts),
+            Domain::Edge => select::select_from_edges(mesh, &by_domain.edges),
+            Domain::Face => select::select_from_faces(mesh, &by_domain.faces),
+        };
+        let size = |s: &Selection| (s.verts.len() + s.edges.len() + s.faces.len()) as u64;
+        let edge_count = || match step.domain {
+            Domain::Face => select::select_from_faces(mesh, &by_domain.faces)
+                .edges
+                .len() as u64,
+            _ => by_domain.edges.len() as u64,
+        };
+        let vert_count = || match step.domain {
+            Domain::Vert => by_domain.verts.len() as u64,
+            _ => full().verts.len() as u64,
+        };
+        // Per face of n sides: n new vertices, 2n edges, n + 1 faces at most
+        // (extrude and inset, individually or as a region).
+        let rings = || -> u64 {
+            by_domain
+                .faces
+                .iter()
+                .map(|&f| 4 * mesh.face_len(f) as u64 + 1)
+                .fold(0, u64::saturating_add)
+        };
+        let m = u64::saturating_mul;
+        match &step.op {
+            Op::Vertex { .. } => 1,
+            Op::Circle { segments, .. } => m(n(segments), 2).saturating_add(1),
+            Op::Grid { segments, .. } => {
+                let (x, y) = (
+                    n(&segments[0]).saturating_add(1),
+                    n(&segments[1]).saturating_add(1),
+                );
+                m(m(x, y), 4)
+            }
+            Op::Cube { .. } => 26,
+            Op::UvSphere {
+                segments, rings, ..
+            } => m(m(n(segments), n(rings).saturating_add(1)), 3).saturating_add(2),
+            Op::Cylinder { segments, .. } => m(n(segments), 6).saturating_add(2),
+            Op::ExtrudeVerts { .. } => m(vert_count(), 2),
+            Op::ExtrudeEdges { .. } => m(edge_count(), 6),
+            Op::ExtrudeFaces { .. }
+            | Op::ExtrudeRegion { .. }
+            | Op::InsetFaces { .. }
+            | Op::InsetRegion { .. } => rings(),
+            Op::SplitEdgesCuts { cuts } => m(m(edge_count(), n(cuts)), 2),
+            Op::SplitEdgesRatios { ratios } => m(m(edge_count(), ratios.len() as u64), 2),
+            // n - 3 diagonals and n - 2 triangles for the one face removed.
+            Op::Triangulate => by_domain
+                .faces
+                .iter()
+                .map(|&f| 2 * (mesh.face_len(f) as u64).saturating_sub(3))
+                .fold(0, u64::saturating_add),
+            Op::Duplicate | Op::Mirror { .. } => size(&full()),
+            Op::MakeFace => 1,
+            Op::Skin { sides, joints, .. } => {
+                let s = n(sides);
+                let wires = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).count() as u64;
+                let tubes = m(wires, m(s, 6).saturating_add(2));
+                let spheres = if *joints {
+                    m(
+                        mesh.vert_count() as u64,
+                        m(m(s, (s / 2).max(2)), 3).saturating_add(2),
+                    )
+                } else {
+                    0
+                };
+                tubes.saturating_add(spheres)
+            }
+            Op::Import { .. }
+            | Op::Translate { .. }
+            | Op::Rotate { .. }
+            | Op::Scale { .. }
+            | Op::Reverse
+            | Op::RecomputeNormals { .. }
+            | Op::Delete { .. }
+            | Op::DissolveEdges
+            | Op::Merge { .. }
+            | Op::RegionExtend { .. }
+            | Op::RegionReduce { .. }
+            | Op::Command(_)
+            | Op::Compound { .. } => 0,
+        }
+    }
+
+    /// Refuses a kernel operator that would outgrow the primitive limit or
+    /// spend the evaluation budget (one unit per element it selects or
+    /// creates), before it allocates anything.
+    fn admit_kernel_op(
+        &mut self,
+        mesh: &Mesh,
+        step: &Step,
+        selected: &[usize],
+    ) -> Result<(), RunError> {
+        let growth = self.predicted_growth(mesh, step, selected);
+        self.evaluations = self
+            .evaluations
+            .saturating_add(selected.len() as u64)
+            .saturating_add(growth);
+        self.check_size(mesh, step, usize::try_from(growth).unwrap_or(usize::MAX))
+    }
+
     fn apply(&self, mesh: &mut Mesh, step: &Step, selected: &[usize]) -> Result<Selection, String> {
         use ops::{create, delete, extrude, faces, inset, merge, select, split, transform};
         let by_domain = selection_of(step.domain, selected);
@@ -1056,10 +1235,14 @@ impl Runner<'_> {
                 *caps,
             )
             .map_err(e)?,
-            Op::Import { path } => {
-                let indexed = io::read_mesh(path).map_err(|err| err.to_string())?;
-                let other = io::bridge::mesh_from_indexed(&indexed)
-                    .map_err(|err| format!("{}: {err}", path.display()))?;
+            Op::Import { resource } => {
+                let source = &self.program.resources[*resource];
+                let indexed = self
+                    .inputs
+                    .get(*resource)
+                    .ok_or_else(|| format!("`{}` was not loaded before the run", source.written))?;
+                let other = io::bridge::mesh_from_indexed(indexed)
+                    .map_err(|err| format!("{}: {err}", source.written))?;
                 let map = mesh.join_mesh(&other);
                 Selection::from_parts(
                     map.verts.into_iter().flatten().collect(),
@@ -1147,7 +1330,9 @@ impl Runner<'_> {
             }
             Op::DissolveEdges => {
                 let es = edges();
-                delete::dissolve_edges(mesh, &es).map_err(e)?
+                let report = delete::dissolve_edges_report(mesh, &es).map_err(e)?;
+                self.applied_override.set(Some(report.dissolved));
+                Selection::from_parts(Vec::new(), Vec::new(), report.faces)
             }
             Op::MakeFace => {
                 let es = edges();
@@ -1198,8 +1383,16 @@ impl Runner<'_> {
                 if !*keep_wires {
                     let wires: Vec<EdgeId> =
                         mesh.edge_ids().filter(|&w| mesh.is_wire_edge(w)).collect();
+                    let mut nodes: Vec<VertId> =
+                        wires.iter().flat_map(|&w| mesh.edge_verts(w)).collect();
                     let wire_selection = Selection::from_parts(Vec::new(), wires, Vec::new());
                     delete::delete(mesh, &wire_selection, delete::DeleteMode::All).map_err(e)?;
+                    // The skeleton's nodes go with its wires, unless a face still uses them.
+                    nodes.sort_unstable();
+                    nodes.dedup();
+                    nodes.retain(|&v| mesh.vert_edges(v).next().is_none());
+                    let loose = Selection::from_parts(nodes, Vec::new(), Vec::new());
+                    delete::delete(mesh, &loose, delete::DeleteMode::All).map_err(e)?;
                 }
                 let map = mesh.join_mesh(&tubes);
                 Selection::from_parts(

@@ -3,6 +3,9 @@
 //! # Writing
 //!
 //! One mesh, one node, one scene; `asset.generator = "graftal"`, no material (default material).
+//! glTF is +Y up (spec §3.4) and graftal's kernel Z-up: positions are written as
+//! (x, z, −y), and read back as (x, −z, y), so a round trip is exact and a
+//! model stands upright in every viewer.
 //!
 //! * Surface primitive (mode TRIANGLES, only if there are polygons): flat shaded. Each polygon's
 //!   vertices are duplicated and carry the polygon's unit Newell normal (`(0, 0, 1)` for
@@ -39,7 +42,7 @@
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use ::gltf::json::{self, validation::Checked, validation::USize64, Index};
 use glam::DVec3;
@@ -348,6 +351,11 @@ fn wire_vertex_count(mesh: &IndexedMesh) -> usize {
 fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32>), IoError> {
     use json::mesh::Mode;
     mesh.validate()?;
+    // glTF is +Y up (spec §3.4): the kernel's Z-up model is turned so that
+    // its height runs along +Y, exactly (a swap and a negation).
+    let mut turned = mesh.clone();
+    turned.z_up_to_y_up();
+    let mesh = &turned;
     mesh.check_f32_range("glTF")?;
     let scalars = mesh.sorted_scalars();
     for (name, values) in &scalars {
@@ -566,8 +574,17 @@ fn base64_decode(text: &str) -> Option<Vec<u8>> {
 }
 
 /// Decodes `.gltf` JSON or `.glb` (detected by the `glTF` magic); `path` names the file in
-/// errors and its directory is where external buffer files are looked up.
+/// errors. External buffer files are refused: see [`decode_with`].
 pub fn decode(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
+    decode_with(bytes, path, &mut super::no_external_files)
+}
+
+/// [`decode`] with `resolve` supplying external buffers (URIs relative to the file).
+pub fn decode_with(
+    bytes: &[u8],
+    path: &Path,
+    resolve: &mut super::Resolve,
+) -> Result<IndexedMesh, IoError> {
     let malformed = |message: String| IoError::Malformed {
         path: path.to_path_buf(),
         message,
@@ -598,10 +615,16 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
             root.asset.version
         )));
     }
-    if let Some(ext) = root.extensions_required.first() {
+    // Quantized attributes are read (positions; the rest is not used).
+    const READ_EXTENSIONS: &[&str] = &["KHR_mesh_quantization"];
+    if let Some(ext) = root
+        .extensions_required
+        .iter()
+        .find(|e| !READ_EXTENSIONS.contains(&e.as_str()))
+    {
         return Err(malformed(format!("requires unsupported extension {ext}")));
     }
-    let buffers = load_buffers(&root, blob, path)?;
+    let buffers = load_buffers(&root, blob, path, resolve)?;
     Reader {
         root: &root,
         buffers: &buffers,
@@ -708,6 +731,7 @@ fn load_buffers<'a>(
     root: &json::Root,
     blob: Option<&'a [u8]>,
     path: &Path,
+    resolve: &mut super::Resolve,
 ) -> Result<Vec<Cow<'a, [u8]>>, IoError> {
     let malformed = |message: String| IoError::Malformed {
         path: path.to_path_buf(),
@@ -739,16 +763,11 @@ fn load_buffers<'a>(
                         "buffer {i}: unsupported URI {uri:?} (only relative files and data URIs)"
                     )));
                     }
-                    let dir = match path.parent() {
-                        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-                        _ => PathBuf::from("."),
-                    };
-                    let file = dir.join(percent_decode(uri));
-                    Cow::Owned(std::fs::read(&file).map_err(|e| {
-                        malformed(format!(
-                            "buffer {i}: cannot read external file {}: {e}",
-                            file.display()
-                        ))
+                    // At most byteLength bytes: a URI naming /dev/zero or a
+                    // huge file costs no more than the buffer declares.
+                    let file = percent_decode(uri);
+                    Cow::Owned(resolve(&file, buffer.byte_length.0).map_err(|e| {
+                        malformed(format!("buffer {i}: cannot read external file {file}: {e}"))
                     })?)
                 }
             };
@@ -908,6 +927,8 @@ impl Reader<'_> {
         }
         mesh.positions = merger.positions;
         mesh.vertex_scalars = columns.names.into_iter().zip(columns.values).collect();
+        // glTF is +Y up (spec §3.4); graftal's kernel is Z-up.
+        mesh.y_up_to_z_up();
         Ok(mesh)
     }
 
@@ -994,7 +1015,7 @@ impl Reader<'_> {
         else {
             return Ok(());
         };
-        let positions = self.read_f32(position.value(), 3, &context, "POSITION")?;
+        let positions = self.read_quantized(position.value(), 3, &context, "POSITION")?;
         let count = positions.len() / 3;
         // Scalars of this primitive: (column, values).
         let mut scalars = Vec::new();
@@ -1228,23 +1249,72 @@ impl Reader<'_> {
         context: &str,
         what: &str,
     ) -> Result<Vec<f32>, IoError> {
+        self.read_floats(index, dims, context, what, false)
+    }
+
+    /// [`Self::read_f32`] that also takes the integer encodings of
+    /// `KHR_mesh_quantization` (how gltfpack and most optimizers ship
+    /// positions): 8- and 16-bit integers, normalized (`c / 127`,
+    /// `c / 255`, … clamped at −1, glTF §3.11) or not (their value).
+    fn read_quantized(
+        &self,
+        index: usize,
+        dims: usize,
+        context: &str,
+        what: &str,
+    ) -> Result<Vec<f32>, IoError> {
+        self.read_floats(index, dims, context, what, true)
+    }
+
+    fn read_floats(
+        &self,
+        index: usize,
+        dims: usize,
+        context: &str,
+        what: &str,
+        quantized: bool,
+    ) -> Result<Vec<f32>, IoError> {
+        use json::accessor::ComponentType;
         let (bytes, stride, count, component, actual) =
             self.accessor_bytes(index, context, what)?;
-        if component != json::accessor::ComponentType::F32 || actual != dims {
+        let integer = matches!(
+            component,
+            ComponentType::I8 | ComponentType::U8 | ComponentType::I16 | ComponentType::U16
+        );
+        if actual != dims || !(component == ComponentType::F32 || quantized && integer) {
+            let kinds = if quantized {
+                "FLOAT, or (KHR_mesh_quantization) BYTE, UNSIGNED_BYTE, SHORT or UNSIGNED_SHORT,"
+            } else {
+                "FLOAT"
+            };
             return Err(self.malformed(format!(
-                "{context}: {what} accessor {index} must be FLOAT with {dims} component(s)"
+                "{context}: {what} accessor {index} must be {kinds} with {dims} component(s)"
             )));
         }
+        let normalized = self.root.accessors[index].normalized;
+        let read: fn(&[u8]) -> f32 = match (component, normalized) {
+            (ComponentType::F32, _) => |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            (ComponentType::I8, false) => |b| f32::from(b[0] as i8),
+            (ComponentType::U8, false) => |b| f32::from(b[0]),
+            (ComponentType::I16, false) => |b| f32::from(i16::from_le_bytes([b[0], b[1]])),
+            (ComponentType::U16, false) => |b| f32::from(u16::from_le_bytes([b[0], b[1]])),
+            (ComponentType::I8, true) => |b| (f32::from(b[0] as i8) / 127.0).max(-1.0),
+            (ComponentType::U8, true) => |b| f32::from(b[0]) / 255.0,
+            (ComponentType::I16, true) => {
+                |b| (f32::from(i16::from_le_bytes([b[0], b[1]])) / 32767.0).max(-1.0)
+            }
+            (ComponentType::U16, true) => |b| f32::from(u16::from_le_bytes([b[0], b[1]])) / 65535.0,
+            (ComponentType::U32, _) => unreachable!("refused above"),
+        };
+        let size = match component {
+            ComponentType::I8 | ComponentType::U8 => 1,
+            ComponentType::I16 | ComponentType::U16 => 2,
+            _ => 4,
+        };
         let mut out = Vec::with_capacity(count * dims);
         for e in 0..count {
             for c in 0..dims {
-                let at = e * stride + 4 * c;
-                out.push(f32::from_le_bytes([
-                    bytes[at],
-                    bytes[at + 1],
-                    bytes[at + 2],
-                    bytes[at + 3],
-                ]));
+                out.push(read(&bytes[e * stride + size * c..]));
             }
         }
         Ok(out)
@@ -1338,7 +1408,8 @@ mod tests {
             let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             assert!((len - 1.0).abs() < 1e-6, "{n:?}");
         }
-        assert_eq!(normals[0], [0.0, 0.0, -1.0]);
+        // The cube's bottom face, (0, 0, −1) in the Z-up kernel, is −Y in glTF.
+        assert_eq!(normals[0], [0.0, -1.0, 0.0]);
         let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
         assert_eq!(indices.len(), 36);
         assert!(indices.iter().all(|&i| i < 24));
@@ -1350,8 +1421,9 @@ mod tests {
             assert!((b - a).cross(c - a).dot(n) > 0.0);
         }
         let pos_acc = prims[0].get(&::gltf::Semantic::Positions).unwrap();
-        assert_eq!(pos_acc.min().unwrap(), serde_json::json!([0.0, 0.0, 0.0]));
-        assert_eq!(pos_acc.max().unwrap(), serde_json::json!([1.0, 1.0, 1.0]));
+        // The unit cube [0, 1]³ turned Y-up: y ∈ [0, 1] from z, z ∈ [−1, 0] from −y.
+        assert_eq!(pos_acc.min().unwrap(), serde_json::json!([0.0, 0.0, -1.0]));
+        assert_eq!(pos_acc.max().unwrap(), serde_json::json!([1.0, 1.0, 0.0]));
         assert_eq!(
             prims[0].indices().unwrap().data_type(),
             ::gltf::accessor::DataType::U16
@@ -1359,12 +1431,16 @@ mod tests {
 
         let wire = prims[1].reader(|_| Some(&blob[..]));
         let wire_pos: Vec<[f32; 3]> = wire.read_positions().unwrap().collect();
-        assert_eq!(wire_pos, vec![[1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]);
+        assert_eq!(
+            wire_pos,
+            vec![[1.0, 1.0, -1.0], [2.0, 2.0, -2.0]],
+            "turned Y-up"
+        );
         let wire_idx: Vec<u32> = wire.read_indices().unwrap().into_u32().collect();
         assert_eq!(wire_idx, vec![0, 1]);
         let wire_acc = prims[1].get(&::gltf::Semantic::Positions).unwrap();
-        assert_eq!(wire_acc.min().unwrap(), serde_json::json!([1.0, 1.0, 1.0]));
-        assert_eq!(wire_acc.max().unwrap(), serde_json::json!([2.0, 2.0, 2.0]));
+        assert_eq!(wire_acc.min().unwrap(), serde_json::json!([1.0, 1.0, -2.0]));
+        assert_eq!(wire_acc.max().unwrap(), serde_json::json!([2.0, 2.0, -1.0]));
 
         // Buffer views: 4-byte aligned, targets set, inside the buffer.
         for view in doc.views() {
@@ -1598,13 +1674,14 @@ mod tests {
         );
         let m = decode(&bytes, p()).unwrap();
         assert_eq!(m.polygon_count(), 2, "node 3 is not in the scene");
+        // glTF's (x, y, z) is the kernel's (x, −z, y).
         assert_eq!(
             m.positions[..3],
-            [[10.0, 0.0, 0.0], [12.0, 0.0, 0.0], [10.0, 2.0, 0.0]]
+            [[10.0, 0.0, 0.0], [12.0, 0.0, 0.0], [10.0, 0.0, 2.0]]
         );
         assert_eq!(
             m.positions[3..],
-            [[0.0, 0.0, 5.0], [1.0, 0.0, 5.0], [0.0, 1.0, 5.0]]
+            [[0.0, -5.0, 0.0], [1.0, -5.0, 0.0], [0.0, -5.0, 1.0]]
         );
         // 90 degrees about z: (1, 0, 0) -> (0, 1, 0).
         let h = std::f64::consts::FRAC_1_SQRT_2;
@@ -1613,7 +1690,7 @@ mod tests {
             serde_json::json!({"nodes": [{"rotation": [0, 0, h, h], "mesh": 0}]}),
         );
         let m = decode(&bytes, p()).unwrap();
-        assert!((m.positions[1][0]).abs() < 1e-6 && (m.positions[1][1] - 1.0).abs() < 1e-6);
+        assert!((m.positions[1][0]).abs() < 1e-6 && (m.positions[1][2] - 1.0).abs() < 1e-6);
         // Cycles in the node graph do not loop forever.
         let bytes = square_gltf(
             4,
@@ -1633,17 +1710,31 @@ mod tests {
         v["buffers"][0]["uri"] = "my%20data.bin".into();
         let path = dir.path().join("model.gltf");
         std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
-        let e = crate::io::read_mesh(&path).unwrap_err().to_string();
+        let read = |path: &Path| {
+            let bytes = std::fs::read(path).unwrap();
+            let dir = path.parent().unwrap().to_path_buf();
+            decode_with(&bytes, path, &mut |uri: &str, max: u64| {
+                let mut data = std::fs::read(dir.join(uri)).map_err(|e| e.to_string())?;
+                data.truncate(max as usize);
+                Ok(data)
+            })
+        };
+        let e = read(&path).unwrap_err().to_string();
         assert!(
             e.contains("buffer 0: cannot read external file") && e.contains("my data.bin"),
             "{e}"
         );
+        // Without a resolver, external files are refused.
+        let e = decode(&std::fs::read(&path).unwrap(), &path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not available"), "{e}");
         std::fs::write(dir.path().join("my data.bin"), bin.unwrap()).unwrap();
-        let back = crate::io::read_mesh(&path).unwrap();
+        let back = read(&path).unwrap();
         assert_eq!(back.polygon_count(), 12);
         // A short external file is reported.
         std::fs::write(dir.path().join("my data.bin"), [0u8; 10]).unwrap();
-        let e = crate::io::read_mesh(&path).unwrap_err().to_string();
+        let e = read(&path).unwrap_err().to_string();
         assert!(
             e.contains("buffer 0 has 10 bytes but declares byteLength"),
             "{e}"
@@ -1774,8 +1865,9 @@ mod tests {
     #[test]
     #[ignore]
     fn gltf_validator_samples() {
-        let dir =
-            PathBuf::from(std::env::var("GRAFTAL_GLTF_SAMPLES").expect("set GRAFTAL_GLTF_SAMPLES"));
+        let dir = std::path::PathBuf::from(
+            std::env::var("GRAFTAL_GLTF_SAMPLES").expect("set GRAFTAL_GLTF_SAMPLES"),
+        );
         std::fs::create_dir_all(&dir).unwrap();
         let mut lines_only = IndexedMesh::new();
         lines_only.positions = vec![[0.0; 3], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]];

@@ -205,6 +205,133 @@ impl IndexedMesh {
     }
 }
 
+/// Which axis points up in a file. graftal's kernel is Z-up; glTF is
+/// always +Y up (its writer and reader convert); OBJ, PLY and STL are
+/// written Z-up unless asked otherwise (`--up y`, which Blender's and
+/// most engines' OBJ importers expect).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum UpAxis {
+    Y,
+    #[default]
+    Z,
+}
+
+impl IndexedMesh {
+    /// Turns a Z-up mesh into the Y-up frame: (x, y, z) → (x, z, −y), a
+    /// rotation (handedness and winding are kept). Exact: only a swap and
+    /// a negation.
+    pub fn z_up_to_y_up(&mut self) {
+        for p in &mut self.positions {
+            // `+ 0.0` keeps −0 out of the files (equal geometry, equal bytes).
+            *p = [p[0], p[2], -p[1] + 0.0];
+        }
+    }
+
+    /// The inverse of [`Self::z_up_to_y_up`]: (x, y, z) → (x, −z, y).
+    pub fn y_up_to_z_up(&mut self) {
+        for p in &mut self.positions {
+            *p = [p[0], -p[2] + 0.0, p[1]];
+        }
+    }
+
+    /// A copy with vertices at most `distance` apart merged (`distance <=
+    /// 0`: bitwise-equal positions only), for files that repeat a vertex
+    /// per corner (OBJ and PLY written after a glTF import). Each vertex
+    /// joins the first earlier vertex within `distance` that kept its own
+    /// place (deterministic: the file's order decides); polygons lose
+    /// repeated corners and those left with fewer than 3 go, as do lines
+    /// of one vertex. Vertex scalars come from the kept vertex.
+    pub fn welded(&self, distance: f64) -> IndexedMesh {
+        let n = self.positions.len();
+        let mut map: Vec<u32> = Vec::with_capacity(n);
+        let mut kept: Vec<u32> = Vec::new();
+        if distance > 0.0 && distance.is_finite() {
+            let cell = distance;
+            let key = |p: &[f64; 3]| p.map(|x| (x / cell).floor() as i64);
+            let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+            let d2 = distance * distance;
+            for (i, p) in self.positions.iter().enumerate() {
+                let home = key(p);
+                let point = DVec3::from_array(*p);
+                let mut found: Option<u32> = None;
+                for dx in -1..=1i64 {
+                    for dy in -1..=1i64 {
+                        for dz in -1..=1i64 {
+                            let k = [
+                                home[0].saturating_add(dx),
+                                home[1].saturating_add(dy),
+                                home[2].saturating_add(dz),
+                            ];
+                            for &j in grid.get(&k).into_iter().flatten() {
+                                let q =
+                                    DVec3::from_array(self.positions[kept[j as usize] as usize]);
+                                if q.distance_squared(point) <= d2 {
+                                    found = Some(found.map_or(j, |f| f.min(j)));
+                                }
+                            }
+                        }
+                    }
+                }
+                let index = match found {
+                    Some(j) => j,
+                    None => {
+                        let j = kept.len() as u32;
+                        kept.push(i as u32);
+                        grid.entry(home).or_default().push(j);
+                        j
+                    }
+                };
+                map.push(index);
+            }
+        } else {
+            let mut exact: HashMap<[u64; 3], u32> = HashMap::new();
+            for (i, p) in self.positions.iter().enumerate() {
+                let bits = p.map(|c| (c + 0.0).to_bits());
+                let index = *exact.entry(bits).or_insert_with(|| {
+                    kept.push(i as u32);
+                    kept.len() as u32 - 1
+                });
+                map.push(index);
+            }
+        }
+        let mut out = IndexedMesh::new();
+        out.positions = kept.iter().map(|&i| self.positions[i as usize]).collect();
+        out.vertex_scalars = self
+            .vertex_scalars
+            .iter()
+            .map(|(name, values)| {
+                (
+                    name.clone(),
+                    kept.iter().map(|&i| values[i as usize]).collect(),
+                )
+            })
+            .collect();
+        let mut corners: Vec<u32> = Vec::new();
+        for poly in self.polygons() {
+            corners.clear();
+            for &v in poly {
+                let w = map[v as usize];
+                if corners.last() != Some(&w) {
+                    corners.push(w);
+                }
+            }
+            while corners.len() > 1 && corners.first() == corners.last() {
+                corners.pop();
+            }
+            if corners.len() >= 3 {
+                out.push_polygon(&corners);
+            }
+        }
+        out.lines = self
+            .lines
+            .iter()
+            .map(|l| l.map(|v| map[v as usize]))
+            .filter(|l| l[0] != l[1])
+            .collect();
+        out
+    }
+}
+
 /// Reusable buffers for triangulating a mesh polygon by polygon without allocating.
 #[derive(Default)]
 pub(crate) struct PolygonTriangulator {

@@ -16,9 +16,10 @@
 //! Readers never panic on malformed input; errors name the file and, where there is one, the
 //! line, element index or byte offset.
 //!
-//! [`write_mesh`] replaces the target atomically (see [`atomic::write_atomic`]).
+//! Nothing here touches the file system: the command line reads and writes
+//! the files (atomically, all outputs of a run or none), and a `.gltf`'s
+//! external buffers come through a [`Resolve`] callback it supplies.
 
-pub mod atomic;
 pub mod bridge;
 pub mod gltf;
 pub mod indexed;
@@ -29,19 +30,21 @@ pub mod stl;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-pub use atomic::write_atomic;
 pub use indexed::IndexedMesh;
+
+/// Supplies a file a mesh file refers to (a `.gltf`'s external buffer):
+/// given its URI as written (percent-decoded, relative to the mesh file)
+/// and the most bytes wanted, returns at most that many.
+pub type Resolve<'a> = dyn FnMut(&str, u64) -> Result<Vec<u8>, String> + 'a;
+
+/// The [`Resolve`] of [`decode`]: no external files.
+pub(crate) fn no_external_files(uri: &str, _max: u64) -> Result<Vec<u8>, String> {
+    Err(format!("external file {uri:?} is not available here"))
+}
 
 /// Errors of mesh reading and writing.
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
-    /// The file could not be read or written.
-    #[error("{}: {source}", .path.display())]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
     /// The file extension names no supported format.
     #[error(
         "{}: unknown mesh format (expected a .obj, .stl, .ply, .gltf or .glb extension)",
@@ -163,41 +166,27 @@ pub fn encode(mesh: &IndexedMesh, format: MeshFormat) -> Result<Vec<u8>, IoError
     }
 }
 
-/// Decodes `bytes` as `format`; `path` names the file in errors, and for `.gltf` files its
-/// directory is where external buffers are looked up. ASCII and binary STL/PLY are detected
-/// by content, so either STL or PLY variant reads both.
+/// Decodes `bytes` as `format`; `path` names the file in errors. ASCII and
+/// binary STL/PLY are detected by content, so either STL or PLY variant
+/// reads both. A `.gltf` that refers to external buffer files fails: see
+/// [`decode_with`].
 pub fn decode(bytes: &[u8], format: MeshFormat, path: &Path) -> Result<IndexedMesh, IoError> {
+    decode_with(bytes, format, path, &mut no_external_files)
+}
+
+/// [`decode`] with `resolve` supplying a `.gltf`'s external buffers.
+pub fn decode_with(
+    bytes: &[u8],
+    format: MeshFormat,
+    path: &Path,
+    resolve: &mut Resolve,
+) -> Result<IndexedMesh, IoError> {
     match format {
         MeshFormat::Obj => obj::decode(bytes, path),
         MeshFormat::StlAscii | MeshFormat::StlBinary => stl::decode(bytes, path),
         MeshFormat::PlyAscii | MeshFormat::PlyBinary => ply::decode(bytes, path),
-        MeshFormat::Gltf | MeshFormat::Glb => gltf::decode(bytes, path),
+        MeshFormat::Gltf | MeshFormat::Glb => gltf::decode_with(bytes, path, resolve),
     }
-}
-
-/// Reads a mesh file, choosing the format by extension.
-pub fn read_mesh(path: &Path) -> Result<IndexedMesh, IoError> {
-    let format = MeshFormat::from_path(path)?;
-    let bytes = std::fs::read(path).map_err(|source| IoError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    decode(&bytes, format, path)
-}
-
-/// Writes a mesh file atomically, choosing the format by extension (STL and PLY binary).
-pub fn write_mesh(path: &Path, mesh: &IndexedMesh) -> Result<(), IoError> {
-    write_mesh_as(path, mesh, MeshFormat::from_path(path)?)
-}
-
-/// Writes a mesh file atomically in an explicit format (e.g. [`MeshFormat::StlAscii`]).
-/// Nothing is written if encoding fails.
-pub fn write_mesh_as(path: &Path, mesh: &IndexedMesh, format: MeshFormat) -> Result<(), IoError> {
-    let bytes = encode(mesh, format)?;
-    write_atomic(path, &bytes).map_err(|source| IoError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
 }
 
 /// Appends the canonical text form of `x`: shortest round-trip digits, positional for
@@ -411,8 +400,7 @@ mod tests {
     }
 
     #[test]
-    fn write_then_read_every_format_through_files() {
-        let dir = tempfile::tempdir().unwrap();
+    fn encode_then_decode_every_format() {
         let mesh = test_meshes::cube_with_wire();
         for (name, format) in [
             ("m.obj", MeshFormat::Obj),
@@ -423,9 +411,9 @@ mod tests {
             ("m.gltf", MeshFormat::Gltf),
             ("m.glb", MeshFormat::Glb),
         ] {
-            let path = dir.path().join(name);
-            write_mesh_as(&path, &mesh, format).unwrap();
-            let back = read_mesh(&path).unwrap();
+            let bytes = encode(&mesh, format).unwrap();
+            let path = Path::new(name);
+            let back = decode(&bytes, MeshFormat::from_path(path).unwrap(), path).unwrap();
             assert!(back.polygon_count() > 0, "{name}");
             let expected_vertices = match format {
                 MeshFormat::StlAscii | MeshFormat::StlBinary => 8,
@@ -433,22 +421,16 @@ mod tests {
             };
             assert_eq!(back.positions.len(), expected_vertices, "{name}");
         }
-        // Extension-driven write.
-        let path = dir.path().join("x.GLB");
-        write_mesh(&path, &mesh).unwrap();
-        assert_eq!(&std::fs::read(&path).unwrap()[..4], b"glTF");
-        // Errors carry the path.
-        let missing = dir.path().join("missing.obj");
-        let e = read_mesh(&missing).unwrap_err().to_string();
-        assert!(e.contains("missing.obj"), "{e}");
-        // Invalid meshes write nothing.
+        assert_eq!(
+            MeshFormat::from_path(Path::new("x.GLB")).unwrap(),
+            MeshFormat::Glb
+        );
+        // Invalid meshes encode to nothing.
         let mut bad = mesh.clone();
         bad.positions[0][0] = f64::NAN;
-        let target = dir.path().join("bad.obj");
         assert!(matches!(
-            write_mesh(&target, &bad),
+            encode(&bad, MeshFormat::Obj),
             Err(IoError::NonFinite { vertex: 0 })
         ));
-        assert!(!target.exists());
     }
 }

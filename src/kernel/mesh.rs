@@ -350,8 +350,22 @@ impl Mesh {
 
     /// The edge between `a` and `b`, if any. Cost: degree of `a`.
     pub fn find_edge(&self, a: VertId, b: VertId) -> Option<EdgeId> {
-        self.vert_edges(a)
-            .find(|&e| self.edge_other_vert(e, a) == b)
+        // Both disk cycles in lockstep: the walk costs twice the smaller
+        // degree, so the hub of a fan (a triangulated 100k-gon, repeated
+        // barycentric splits) is never walked once per spoke. An edge a–b
+        // is in both cycles and there is at most one, so either walk finds
+        // the same edge, and running out of either proves there is none.
+        let (mut from_a, mut from_b) = (self.vert_edges(a), self.vert_edges(b));
+        loop {
+            let e = from_a.next()?;
+            if self.edge_other_vert(e, a) == b {
+                return Some(e);
+            }
+            let e = from_b.next()?;
+            if self.edge_other_vert(e, b) == a {
+                return Some(e);
+            }
+        }
     }
 
     /// A face whose boundary uses exactly these vertices in this cyclic order

@@ -449,8 +449,17 @@ fn ear_clip(points: &[DVec2], out: &mut Vec<[u32; 3]>) {
     let mut remaining = n;
     let mut cur = 0;
     let mut misses = 0;
-    let mut budget = (n as u64).saturating_mul(n as u64).saturating_mul(8) + 64;
+    // Ear clipping is quadratic: on big rings (only rings the CDT refuses
+    // get here: repeated points, self-crossings) the work stops at
+    // 512 tests per vertex and the rest becomes a fan, so a 100k-point
+    // keyhole costs milliseconds, not minutes.
+    let n64 = n as u64;
+    let mut budget = n64.saturating_mul(n64).saturating_mul(8).min(n64 * 512) + 64;
     while remaining > 3 {
+        let Some(left) = budget.checked_sub(1) else {
+            break;
+        };
+        budget = left;
         let (a, b) = (prev[cur], next[cur]);
         let (pa, pc, pb) = (points[a], points[cur], points[b]);
         let o = orient2(pa, pc, pb);

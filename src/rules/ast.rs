@@ -396,6 +396,8 @@ impl<'de> Deserialize<'de> for ParamSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DomainName {
+    /// `"verts"`, or `"vertices"` in full.
+    #[serde(alias = "vertices")]
     Verts,
     Edges,
     Faces,
@@ -404,6 +406,8 @@ pub enum DomainName {
 /// One step: an operator, and which elements it applies to.
 #[derive(Debug, Clone)]
 pub struct Step {
+    /// Where the step is written (its table), for errors about the step as a whole.
+    pub span: Option<std::ops::Range<usize>>,
     pub name: Option<Spanned<String>>,
     /// Condition over element properties; only matching elements are used.
     pub select: Option<Spanned<String>>,
@@ -747,14 +751,27 @@ pub struct RegionOp {
 
 impl<'de> Deserialize<'de> for Step {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let spanned = Spanned::<UnspannedStep>::deserialize(d)?;
+        let mut step = spanned.value.0;
+        step.span = spanned.span;
+        Ok(step)
+    }
+}
+
+/// A step before its own span is attached.
+struct UnspannedStep(Step);
+
+impl<'de> Deserialize<'de> for UnspannedStep {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         struct StepVisitor;
         impl<'de> Visitor<'de> for StepVisitor {
-            type Value = Step;
+            type Value = UnspannedStep;
             fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
                 f.write_str("a step table with one operator key, such as { cube = { size = 2 } }")
             }
-            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Step, A::Error> {
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<UnspannedStep, A::Error> {
                 let mut step = Step {
+                    span: None,
                     name: None,
                     select: None,
                     from: None,
@@ -788,7 +805,7 @@ impl<'de> Deserialize<'de> for Step {
                         },
                     }
                 }
-                Ok(step)
+                Ok(UnspannedStep(step))
             }
         }
         // A struct to RON (`(name: "x", cube: ())`), a table to TOML.

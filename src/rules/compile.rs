@@ -4,20 +4,23 @@
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use rustc_hash::FxHashMap;
 
 use crate::kernel::ops::delete::DeleteMode;
 use crate::kernel::ops::select::Adjacency;
 use crate::kernel::Domain;
 
 use super::ast::{self, DomainName, Operation, ParamSpec, RuleFile, Scalar as AstScalar};
-use super::diagnostic::{find_key, find_literal, offset_of, RuleError, SourceFile};
+use super::diagnostic::{content_span, RuleError, SourceFile};
 use super::expr::{Expr, ExprError, BUILTIN_CONSTANT_NAMES};
 use super::program::{
     Command, CommandKind, Compound, Condition, FrameParams, Offset, OnIntersection, Op, Param,
-    ParamKind, Policy, Program, Property, Scalar, Step, Vector,
+    ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
 };
 use super::random::stream_key;
-use super::spanned::{with_format, SourceFormat, Spanned};
+use super::spanned::{SourceFormat, Spanned};
 
 /// A `--set name=value` override from the command line.
 #[derive(Debug, Clone, PartialEq)]
@@ -46,7 +49,7 @@ impl Override {
 /// Reads a rule file's text.
 pub fn load_text(path: &Path) -> Result<SourceFile, RuleError> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|err| {
+    let bytes = std::fs::read(path).map_err(|err| {
         RuleError::at(
             &SourceFile {
                 name: name.clone(),
@@ -56,7 +59,31 @@ pub fn load_text(path: &Path) -> Result<SourceFile, RuleError> {
             format!("cannot read rule file: {err}"),
         )
     })?;
-    Ok(SourceFile { name, text })
+    source_from_bytes(name, bytes)
+}
+
+/// A rule file's text from its bytes; bytes that are not UTF-8 are an
+/// error located at the first bad byte.
+pub fn source_from_bytes(name: String, bytes: Vec<u8>) -> Result<SourceFile, RuleError> {
+    match String::from_utf8(bytes) {
+        Ok(text) => Ok(SourceFile { name, text }),
+        Err(err) => {
+            let offset = err.utf8_error().valid_up_to();
+            let bad = err.as_bytes()[offset];
+            // Show the text up to the bad byte, so the snippet is exact.
+            let text = String::from_utf8_lossy(&err.as_bytes()[..offset]).into_owned();
+            let file = SourceFile { name, text };
+            Err(RuleError::at(
+                &file,
+                Some(offset..offset),
+                format!(
+                    "the rule file is not UTF-8 text: byte 0x{bad:02x} at byte offset {offset}"
+                ),
+            )
+            .with_label("the bad byte is here")
+            .with_help("save the file as UTF-8"))
+        }
+    }
 }
 
 /// Reads and parses a rule file (format chosen by extension).
@@ -85,23 +112,13 @@ pub fn format_of(path: &Path) -> Result<SourceFormat, String> {
 
 /// Parses rule text in the given format.
 pub fn parse(file: &SourceFile, format: SourceFormat) -> Result<RuleFile, RuleError> {
-    with_format(format, || match format {
+    match format {
         SourceFormat::Toml => toml::from_str::<RuleFile>(&file.text)
             .map_err(|err| RuleError::at(file, err.span(), err.message().trim().to_owned())),
-        // Implicit `Some` lets optional keys be written plainly: `start: (cube: ())`.
-        SourceFormat::Ron => ron::Options::default()
-            .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-            .from_str::<RuleFile>(&file.text)
-            .map_err(|err| {
-                let start = offset_of(&file.text, err.span.start.line, err.span.start.col);
-                let end = offset_of(&file.text, err.span.end.line, err.span.end.col).max(start);
-                RuleError::at(
-                    file,
-                    Some(start..end.max(start + 1).min(file.text.len().max(start))),
-                    err.code.to_string(),
-                )
-            }),
-    })
+        SourceFormat::Ron => super::ron::parse(&file.text)
+            .and_then(|value| super::ron::from_value::<RuleFile>(&value))
+            .map_err(|err| RuleError::at(file, err.span, err.message)),
+    }
 }
 
 /// Single-name element properties; dotted ones (`pos.x`) are listed in
@@ -179,38 +196,34 @@ pub(crate) fn property_for(domain: Domain, name: &str) -> Option<Property> {
 
 struct Compiler<'a> {
     file: &'a SourceFile,
-    format: SourceFormat,
     param_names: Vec<String>,
+    /// Files the program needs (see [`Program::resources`]).
+    resources: std::cell::RefCell<Vec<Resource>>,
 }
 
 impl<'a> Compiler<'a> {
+    /// The index of `resource` in the program's list (added on first use).
+    fn resource(&self, resource: Resource) -> usize {
+        let mut list = self.resources.borrow_mut();
+        match list.iter().position(|r| r.path == resource.path) {
+            Some(i) => i,
+            None => {
+                list.push(resource);
+                list.len() - 1
+            }
+        }
+    }
+
     fn error(&self, span: Option<Range<usize>>, message: impl Into<String>) -> RuleError {
         RuleError::at(self.file, span, message)
     }
 
     /// The span of a string value's content, for locating expression errors.
     fn content_span<T>(&self, spanned: &Spanned<T>, content: &str) -> Option<Range<usize>> {
-        match (&spanned.span, self.format) {
-            (Some(span), _) => {
-                let raw = &self.file.text[span.clone()];
-                let quote = if raw.starts_with("\"\"\"") || raw.starts_with("'''") {
-                    3
-                } else if raw.starts_with('"') || raw.starts_with('\'') {
-                    1
-                } else {
-                    0
-                };
-                Some(span.start + quote..span.start + quote + content.len())
-            }
-            (None, _) => find_literal(&self.file.text, content),
-        }
-    }
-
-    fn span_of<T>(&self, spanned: &Spanned<T>, fallback_key: &str) -> Option<Range<usize>> {
         spanned
             .span
-            .clone()
-            .or_else(|| find_key(&self.file.text, fallback_key))
+            .as_ref()
+            .map(|span| content_span(&self.file.text, span.clone(), content))
     }
 
     fn expr_error(&self, base: Option<Range<usize>>, err: ExprError) -> RuleError {
@@ -219,10 +232,11 @@ impl<'a> Compiler<'a> {
         self.error(span, err.message)
     }
 
+    /// The slot of parameter `name` (slots are in name order).
     fn resolve_param(&self, name: &str) -> Option<u32> {
         self.param_names
-            .iter()
-            .position(|p| p == name)
+            .binary_search_by(|p| p.as_str().cmp(name))
+            .ok()
             .map(|i| i as u32)
     }
 
@@ -520,15 +534,14 @@ fn is_identifier(name: &str) -> bool {
 /// Compiles a parsed rule file. `base_dir` resolves relative paths.
 pub fn compile(
     file: &SourceFile,
-    format: SourceFormat,
     ast: &RuleFile,
     overrides: &[Override],
     base_dir: &Path,
 ) -> Result<Program, RuleError> {
     let mut compiler = Compiler {
         file,
-        format,
         param_names: Vec::new(),
+        resources: std::cell::RefCell::new(Vec::new()),
     };
 
     // Slots are assigned in name order: TOML does not keep table order, and
@@ -538,7 +551,7 @@ pub fn compile(
 
     // Parameter names first, so expressions can refer to any of them.
     for (name, _) in declared.iter().map(|p| (&p.0, &p.1)) {
-        let span = compiler.span_of(name, &name.value);
+        let span = name.span.clone();
         if !is_identifier(&name.value) {
             return Err(compiler.error(
                 span,
@@ -559,7 +572,8 @@ pub fn compile(
                 ),
             ));
         }
-        if compiler.param_names.contains(&name.value) {
+        // Sorted: a name declared twice is next to its first declaration.
+        if compiler.param_names.last() == Some(&name.value) {
             return Err(
                 compiler.error(span, format!("parameter `{}` is defined twice", name.value))
             );
@@ -595,8 +609,8 @@ pub fn compile(
                 };
                 let c = Compiler {
                     file: &source,
-                    format,
                     param_names: compiler.param_names.clone(),
+                    resources: std::cell::RefCell::new(Vec::new()),
                 };
                 let expr = c.param_expr(&o.value, Some(0..o.value.len()))?;
                 (ParamKind::Expr(expr), None)
@@ -630,7 +644,7 @@ pub fn compile(
             OnIntersection::CancelCompound | OnIntersection::CancelRule => {
                 return Err(compiler
                     .error(
-                        o.span.clone().or_else(|| find_key(&compiler.file.text, "on_intersection")),
+                        o.span.clone(),
                         "the file's `on_intersection` can be \"skip\" or \"error\"; cancelling belongs to steps in a compound or a rule",
                     )
                     .with_help("put `on_intersection = \"cancel_compound\"` on the compound call or its steps, `\"cancel_rule\"` on a rule's steps"));
@@ -652,17 +666,26 @@ pub fn compile(
         rule_instances: Vec::new(),
         next_rule_instance: 0,
         may_cancel: false,
+        bodies: FxHashMap::default(),
     };
+    check_unrolled_size(&compiler, ast)?;
     let mut steps: Vec<Step> = Vec::new();
     if let Some(start) = &ast.start {
         if let Some((key, op)) = &start.op {
             if !is_create(&op.value) {
-                return Err(compiler.error(compiler.span_of(key, &key.value), format!("`[start]` must be a create operator (vertex, circle, grid, cube, uv_sphere, cylinder, cone, import), not `{}`", key.value)));
+                return Err(compiler.error(key.span.clone(), format!("`[start]` must be a create operator (vertex, circle, grid, cube, uv_sphere, cylinder, cone, import), not `{}`", key.value)));
             }
         }
         if start.rule.is_some() || start.compound.is_some() || start.repeat.is_some() {
+            let key = start
+                .rule
+                .as_ref()
+                .and_then(|r| r.span.clone())
+                .or_else(|| start.compound.as_ref().and_then(|(k, _)| k.span.clone()))
+                .or_else(|| start.repeat.as_ref().and_then(|r| r.span.clone()))
+                .or_else(|| start.span.clone());
             return Err(compiler.error(
-                None,
+                key,
                 "`[start]` takes one create operator, not `rule`, `compound` or `repeat`",
             ));
         }
@@ -692,6 +715,7 @@ pub fn compile(
                     rule_instances: Vec::new(),
                     next_rule_instance: 0,
                     may_cancel: false,
+                    bodies: FxHashMap::default(),
                 };
                 check.compile_compound(i, None)?;
                 compounds.push(Compound {
@@ -722,6 +746,7 @@ pub fn compile(
         policy,
         on_intersection,
         may_cancel,
+        resources: compiler.resources.take(),
     })
 }
 
@@ -740,10 +765,7 @@ pub const DEFAULT_TOLERANCE: f64 = 1e-6;
 pub const MAX_TOLERANCE: f64 = 1.0;
 
 fn check_tolerance(c: &Compiler, t: &Spanned<f64>) -> Result<f64, RuleError> {
-    let span = t
-        .span
-        .clone()
-        .or_else(|| find_key(&c.file.text, "tolerance"));
+    let span = t.span.clone();
     if !(0.0..=MAX_TOLERANCE).contains(&t.value) {
         return Err(c
             .error(
@@ -765,10 +787,7 @@ fn compile_param(
     name: &Spanned<String>,
     spec: &Spanned<ParamSpec>,
 ) -> Result<(ParamKind, Option<(Expr, Expr)>), RuleError> {
-    let span = spec
-        .span
-        .clone()
-        .or_else(|| find_key(&c.file.text, &name.value));
+    let span = spec.span.clone();
     Ok(match &spec.value {
         ParamSpec::Number(x) => (ParamKind::Expr(c.number(*x, span)?), None),
         ParamSpec::Expr(text) => {
@@ -873,48 +892,48 @@ fn order_params(
             d
         })
         .collect();
-    // 0 = unvisited, 1 = on the stack, 2 = done.
+    // Depth-first, with an explicit stack: a chain of 100,000 parameters
+    // must not overflow the call stack. 0 = unvisited, 1 = on the stack,
+    // 2 = done.
     let mut state = vec![0u8; n];
     let mut order: Vec<usize> = Vec::with_capacity(n);
-    fn visit(
-        i: usize,
-        deps: &[Vec<u32>],
-        state: &mut [u8],
-        order: &mut Vec<usize>,
-        stack: &mut Vec<usize>,
-    ) -> Result<(), Vec<usize>> {
-        match state[i] {
-            2 => return Ok(()),
-            1 => {
-                let from = stack.iter().position(|&s| s == i).unwrap_or(0);
-                let mut cycle = stack[from..].to_vec();
-                cycle.push(i);
-                return Err(cycle);
+    for root in 0..n {
+        if state[root] == 2 {
+            continue;
+        }
+        // (parameter, index of its next dependency to visit)
+        let mut stack: Vec<(usize, usize)> = vec![(root, 0)];
+        state[root] = 1;
+        while let Some(&mut (i, ref mut next)) = stack.last_mut() {
+            let Some(&d) = deps[i].get(*next) else {
+                state[i] = 2;
+                order.push(i);
+                stack.pop();
+                continue;
+            };
+            *next += 1;
+            let d = d as usize;
+            match state[d] {
+                2 => {}
+                1 => {
+                    let from = stack.iter().position(|&(s, _)| s == d).unwrap_or(0);
+                    let mut cycle: Vec<usize> = stack[from..].iter().map(|&(s, _)| s).collect();
+                    cycle.push(d);
+                    let names: Vec<&str> = cycle.iter().map(|&k| params[k].name.as_str()).collect();
+                    let first = &declared[cycle[0]].0;
+                    return Err(c.error(
+                        first.span.clone(),
+                        format!(
+                            "parameters depend on each other in a cycle: {}",
+                            names.join(" → ")
+                        ),
+                    ));
+                }
+                _ => {
+                    state[d] = 1;
+                    stack.push((d, 0));
+                }
             }
-            _ => {}
-        }
-        state[i] = 1;
-        stack.push(i);
-        for &d in &deps[i] {
-            visit(d as usize, deps, state, order, stack)?;
-        }
-        stack.pop();
-        state[i] = 2;
-        order.push(i);
-        Ok(())
-    }
-    for i in 0..n {
-        let mut stack = Vec::new();
-        if let Err(cycle) = visit(i, &deps, &mut state, &mut order, &mut stack) {
-            let names: Vec<&str> = cycle.iter().map(|&k| params[k].name.as_str()).collect();
-            let first = &declared[cycle[0]].0;
-            return Err(c.error(
-                c.span_of(first, &first.value),
-                format!(
-                    "parameters depend on each other in a cycle: {}",
-                    names.join(" → ")
-                ),
-            ));
         }
     }
     let mut slots: Vec<Option<Param>> = params.into_iter().map(Some).collect();
@@ -936,6 +955,102 @@ fn param_exprs(p: &Param) -> impl Iterator<Item = &Expr> {
         v.push(b);
     }
     v.into_iter()
+}
+
+/// Refuses a file whose rules unroll to more than [`MAX_STEPS`] steps
+/// before anything is unrolled: counting costs one pass over the file,
+/// whatever the repeat counts say. The error points at the top-level step
+/// that passes the limit.
+fn check_unrolled_size(c: &Compiler, ast: &RuleFile) -> Result<(), RuleError> {
+    let names = definition_names(&ast.rules);
+    let mut memo: Vec<Option<u64>> = vec![None; names.len()];
+    let mut visiting = vec![false; names.len()];
+    let mut total: u64 = u64::from(ast.start.is_some());
+    for (_, def) in &ast.compound.0 {
+        total = total.saturating_add(unrolled(
+            ast,
+            &names,
+            &def.steps,
+            &mut memo,
+            &mut visiting,
+            0,
+        ));
+    }
+    for step in &ast.steps {
+        total = total.saturating_add(unrolled(
+            ast,
+            &names,
+            std::slice::from_ref(step),
+            &mut memo,
+            &mut visiting,
+            0,
+        ));
+        if total > u64::from(MAX_STEPS) {
+            let span = step
+                .repeat
+                .as_ref()
+                .and_then(|r| r.span.clone())
+                .or_else(|| step.rule.as_ref().and_then(|r| r.span.clone()))
+                .or_else(|| step.span.clone());
+            let count = if total == u64::MAX {
+                "an astronomical number of".to_owned()
+            } else {
+                total.to_string()
+            };
+            return Err(c
+                .error(
+                    span,
+                    format!(
+                        "the rules unroll to more than {MAX_STEPS} steps ({count} up to this one)"
+                    ),
+                )
+                .with_help("every `repeat` multiplies the steps of the rule it includes"));
+        }
+    }
+    Ok(())
+}
+
+/// Steps `steps` unroll to, rules included and repeats multiplied
+/// (saturating; a rule in a cycle or nested past [`MAX_NESTING`] counts 0
+/// here: the expander reports those).
+fn unrolled(
+    ast: &RuleFile,
+    names: &[&str],
+    steps: &[ast::Step],
+    memo: &mut [Option<u64>],
+    visiting: &mut [bool],
+    depth: usize,
+) -> u64 {
+    let mut total: u64 = 0;
+    for step in steps {
+        let repeat = step.repeat.as_ref().map_or(1, |r| r.value.max(1) as u64);
+        let each = match &step.rule {
+            None => 1,
+            Some(rule) => match names.iter().position(|n| *n == rule.value) {
+                None => 0,
+                Some(i) if visiting[i] || depth >= MAX_NESTING => 0,
+                Some(i) => match memo[i] {
+                    Some(n) => n,
+                    None => {
+                        visiting[i] = true;
+                        let n = unrolled(
+                            ast,
+                            names,
+                            &ast.rules.0[i].1.steps,
+                            memo,
+                            visiting,
+                            depth + 1,
+                        );
+                        visiting[i] = false;
+                        memo[i] = Some(n);
+                        n
+                    }
+                },
+            },
+        };
+        total = total.saturating_add(repeat.saturating_mul(each));
+    }
+    total
 }
 
 /// Turns lists of AST steps into program steps: includes rules, unrolls
@@ -962,7 +1077,15 @@ struct Expander<'c, 'a> {
     next_rule_instance: u32,
     /// Whether a step may cancel a compound or rule application.
     may_cancel: bool,
+    /// Compiled bodies by written step (looked up only, never iterated):
+    /// copies of a step share one.
+    bodies: FxHashMap<*const ast::Step, Arc<StepBody>>,
 }
+
+/// Deepest nesting of rule inclusions and compound commands (a rule that
+/// includes a rule that calls a compound counts 3): input-driven recursion
+/// must stay far from the stack's end.
+pub const MAX_NESTING: usize = 64;
 
 /// Most steps a rule file may unroll to: a guard against `repeat = 1e9`.
 const MAX_STEPS: u32 = 1_000_000;
@@ -1007,7 +1130,7 @@ impl Expander<'_, '_> {
                 Some(r) => {
                     if !(1..=i64::from(MAX_STEPS)).contains(&r.value) {
                         return Err(c.error(
-                            c.span_of(r, "repeat"),
+                            r.span.clone(),
                             format!("`repeat` must be between 1 and {MAX_STEPS}"),
                         ));
                     }
@@ -1026,7 +1149,7 @@ impl Expander<'_, '_> {
                 } else {
                     if self.next_uid >= MAX_STEPS {
                         return Err(c.error(
-                            step.repeat.as_ref().and_then(|r| c.span_of(r, "repeat")),
+                            step.repeat.as_ref().and_then(|r| r.span.clone()),
                             format!("the rules unroll to more than {MAX_STEPS} steps"),
                         ));
                     }
@@ -1094,6 +1217,7 @@ impl Expander<'_, '_> {
                 format!("rules include each other in a cycle: {cycle}"),
             ));
         }
+        self.check_nesting(span.clone())?;
         self.rule_stack.push(index);
         self.rule_instances.push(self.next_rule_instance);
         self.next_rule_instance += 1;
@@ -1102,6 +1226,23 @@ impl Expander<'_, '_> {
         self.rule_instances.pop();
         self.rule_stack.pop();
         result
+    }
+
+    /// Refuses one more level of rule inclusion or compound nesting past
+    /// [`MAX_NESTING`].
+    fn check_nesting(&self, span: Option<Range<usize>>) -> Result<(), RuleError> {
+        if self.rule_stack.len() + self.compound_stack.len() < MAX_NESTING {
+            return Ok(());
+        }
+        Err(self
+            .c
+            .error(
+                span,
+                format!(
+                    "rules and compound commands are nested more than {MAX_NESTING} levels deep"
+                ),
+            )
+            .with_help("use `repeat` on a step or a rule instead of a chain of inclusions"))
     }
 
     /// Compiles compound `index` once; `call_span` locates a cycle error.
@@ -1121,10 +1262,11 @@ impl Expander<'_, '_> {
                 format!("compound commands contain each other in a cycle: {cycle}"),
             ));
         }
+        self.check_nesting(call_span.clone())?;
         let (name, def) = &self.ast.compound.0[index];
         if !is_identifier(&name.value) {
             return Err(c.error(
-                c.span_of(name, &name.value),
+                name.span.clone(),
                 format!(
                     "`{}` is not a valid compound name (letters, digits, `_`)",
                     name.value
@@ -1147,7 +1289,7 @@ impl Expander<'_, '_> {
         result?;
         if steps.is_empty() {
             return Err(c.error(
-                c.span_of(name, &name.value),
+                name.span.clone(),
                 format!("compound `{}` has no steps", name.value),
             ));
         }
@@ -1225,6 +1367,8 @@ impl Expander<'_, '_> {
         Ok(())
     }
 
+    /// One copy of a written step: its place and what it reads, with the
+    /// body compiled on the step's first copy and shared by the others.
     fn compile_step(
         &mut self,
         step: &ast::Step,
@@ -1233,22 +1377,61 @@ impl Expander<'_, '_> {
         earlier: &[(String, Vec<u32>)],
     ) -> Result<Step, RuleError> {
         let c = self.c;
+        let body = match self.bodies.get(&std::ptr::from_ref(step)) {
+            Some(body) => Arc::clone(body),
+            None => {
+                let body = Arc::new(self.compile_body(step, path)?);
+                self.bodies
+                    .insert(std::ptr::from_ref(step), Arc::clone(&body));
+                body
+            }
+        };
+        let from = match &step.from {
+            None => None,
+            Some(f) => {
+                let span = c.content_span(f, &f.value);
+                match earlier.iter().find(|(n, _)| *n == f.value) {
+                    Some((_, uids)) => Some(uids.clone()),
+                    None => {
+                        let names: Vec<&str> = earlier.iter().map(|(n, _)| n.as_str()).collect();
+                        return Err(c
+                            .error(span, format!("no earlier step is named `{}`", f.value))
+                            .with_help(if names.is_empty() {
+                                "`from` names an earlier step of the same list; this is the first"
+                                    .to_owned()
+                            } else {
+                                format!("earlier steps: {}", names.join(", "))
+                            }));
+                    }
+                }
+            }
+        };
+        let on_intersection = self.step_on_intersection(step, &body.op)?;
+        Ok(Step {
+            uid,
+            key: stream_key(&format!("step/{path}")),
+            name: path.to_owned(),
+            from,
+            on_intersection,
+            rule_instances: self.rule_instances.clone(),
+            body,
+        })
+    }
+
+    /// What a written step does: its operator, condition, kind and policy
+    /// (the same for every copy; `path` names the first in errors).
+    fn compile_body(&mut self, step: &ast::Step, path: &str) -> Result<StepBody, RuleError> {
+        let c = self.c;
         let (op_key, op, compound_index) = match (&step.op, &step.compound) {
             (Some(_), Some((key, _))) => {
                 return Err(c.error(
-                    c.span_of(key, "compound"),
+                    key.span.clone(),
                     "a step runs one operator or one compound, not both",
                 ))
             }
             (Some((key, op)), None) => (key, Some(op), None),
             (None, Some((key, call))) => {
-                let span = call
-                    .value
-                    .name
-                    .span
-                    .clone()
-                    .or_else(|| call.span.clone())
-                    .or_else(|| find_literal(&c.file.text, &call.value.name.value));
+                let span = call.value.name.span.clone().or_else(|| call.span.clone());
                 let index = find_definition(
                     c,
                     span.clone(),
@@ -1265,13 +1448,13 @@ impl Expander<'_, '_> {
             }
             (None, None) => {
                 return Err(c
-                    .error(None, format!("step `{path}` has no operator"))
+                    .error(step.span.clone(), format!("step `{path}` has no operator"))
                     .with_help(
                         "add one operator key, such as `cube = {}` or `extrude_faces = { distance = 1 }`, or `rule = \"NAME\"`, or `compound = \"NAME\"`",
                     ));
             }
         };
-        let op_span = c.span_of(op_key, &op_key.value);
+        let op_span = op_key.span.clone();
         let creates = op.is_some_and(|op| is_create(&op.value));
         let whole_mesh = op.is_some_and(|op| matches!(op.value, Operation::Skin(_)));
         if creates || whole_mesh {
@@ -1311,7 +1494,7 @@ impl Expander<'_, '_> {
                 if !allowed.contains(&d) {
                     let names: Vec<&str> = allowed.iter().map(|&d| plural(d)).collect();
                     return Err(c.error(
-                        c.span_of(on, "on"),
+                        on.span.clone(),
                         format!(
                             "`{}` works on {}, not {}",
                             op_key.value,
@@ -1321,26 +1504,6 @@ impl Expander<'_, '_> {
                     ));
                 }
                 d
-            }
-        };
-        let from = match &step.from {
-            None => None,
-            Some(f) => {
-                let span = c.content_span(f, &f.value);
-                match earlier.iter().find(|(n, _)| *n == f.value) {
-                    Some((_, uids)) => Some(uids.clone()),
-                    None => {
-                        let names: Vec<&str> = earlier.iter().map(|(n, _)| n.as_str()).collect();
-                        return Err(c
-                            .error(span, format!("no earlier step is named `{}`", f.value))
-                            .with_help(if names.is_empty() {
-                                "`from` names an earlier step of the same list; this is the first"
-                                    .to_owned()
-                            } else {
-                                format!("earlier steps: {}", names.join(", "))
-                            }));
-                    }
-                }
             }
         };
         let select = match &step.select {
@@ -1375,19 +1538,12 @@ impl Expander<'_, '_> {
             None => c.file.name.clone(),
         };
         let policy = self.step_policy(step, &op, &op_key.value)?;
-        let on_intersection = self.step_on_intersection(step, &op)?;
-        Ok(Step {
-            uid,
-            key: stream_key(&format!("step/{path}")),
-            name: path.to_owned(),
+        Ok(StepBody {
             location,
             domain,
             select,
-            from,
             op,
             policy,
-            on_intersection,
-            rule_instances: self.rule_instances.clone(),
         })
     }
 
@@ -1402,10 +1558,7 @@ impl Expander<'_, '_> {
             return Ok(None);
         };
         let c = self.c;
-        let span = name
-            .span
-            .clone()
-            .or_else(|| find_key(&c.file.text, "on_intersection"));
+        let span = name.span.clone();
         let is_compound = matches!(op, Op::Compound { .. });
         if !matches!(op, Op::Command(_)) && !is_compound {
             return Err(c.error(
@@ -1443,18 +1596,14 @@ impl Expander<'_, '_> {
         op_name: &str,
     ) -> Result<Option<Policy>, RuleError> {
         let c = self.c;
-        let key_span = |key: &str| find_key(&c.file.text, key);
         if step.policy.is_none() && step.tolerance.is_none() {
             return Ok(None);
         }
         if !matches!(op, Op::Command(_) | Op::Compound { .. }) {
             let (span, key) = match &step.policy {
-                Some(p) => (p.span.clone().or_else(|| key_span("policy")), "policy"),
+                Some(p) => (p.span.clone(), "policy"),
                 None => (
-                    step.tolerance
-                        .as_ref()
-                        .and_then(|t| t.span.clone())
-                        .or_else(|| key_span("tolerance")),
+                    step.tolerance.as_ref().and_then(|t| t.span.clone()),
                     "tolerance",
                 ),
             };
@@ -1475,10 +1624,7 @@ impl Expander<'_, '_> {
             (Some(ast::PolicyName::Intersect), None) => Ok(Some(Policy::Intersect)),
             (_, Some(_)) => Err(c
                 .error(
-                    step.tolerance
-                        .as_ref()
-                        .and_then(|t| t.span.clone())
-                        .or_else(|| key_span("tolerance")),
+                    step.tolerance.as_ref().and_then(|t| t.span.clone()),
                     "`tolerance` is the distance of `policy = \"merge\"`",
                 )
                 .with_help("add `policy = \"merge\"` to this step, or remove `tolerance`")),
@@ -1525,7 +1671,7 @@ fn check_stray_keys(c: &Compiler, step: &ast::Step) -> Result<(), RuleError> {
     let Some(stray) = step.stray_keys.first() else {
         return Ok(());
     };
-    let span = c.span_of(stray, &stray.value);
+    let span = stray.span.clone();
     Err(match &step.op {
         Some((key, _)) if ast::OPERATOR_NAMES.contains(&stray.value.as_str()) => c
             .error(
@@ -1596,9 +1742,7 @@ fn compile_command(
         if let AstScalar::Number(x) = p.value {
             if !(0.0..=1.0).contains(&x) {
                 return Err(c.error(
-                    p.span
-                        .clone()
-                        .or_else(|| find_key(&c.file.text, "probability")),
+                    p.span.clone(),
                     format!("a probability must be in [0, 1], got {x}"),
                 ));
             }
@@ -1618,7 +1762,7 @@ fn compile_command(
         {
             if *x < 0.0 {
                 return Err(c.error(
-                    s.clone().or_else(|| find_key(&c.file.text, key)),
+                    s.clone(),
                     format!("`{key}` is a spread σ (values are drawn from U(−σ, σ)) and cannot be negative, got {x}"),
                 ));
             }
@@ -1725,12 +1869,24 @@ fn compile_op(
         },
         Operation::Import(o) => {
             let path = PathBuf::from(&o.path.value);
+            let path = if path.is_absolute() {
+                path
+            } else {
+                base_dir.join(path)
+            };
+            let location = match &o.path.span {
+                Some(span) => {
+                    let (line, column) = super::diagnostic::line_column(&c.file.text, span.start);
+                    format!("{}:{line}:{column}", c.file.name)
+                }
+                None => c.file.name.clone(),
+            };
             Op::Import {
-                path: if path.is_absolute() {
-                    path
-                } else {
-                    base_dir.join(path)
-                },
+                resource: c.resource(Resource {
+                    path,
+                    written: o.path.value.clone(),
+                    location,
+                }),
             }
         }
         Operation::Translate(o) => Op::Translate {
@@ -1893,7 +2049,6 @@ fn unknown_name_hint(message: &str, names: &[String]) -> Option<String> {
 /// Loads and compiles a rule file in one go.
 pub fn compile_file(path: &Path, overrides: &[Override]) -> Result<Program, RuleError> {
     let (file, ast) = load(path)?;
-    let format = format_of(path).map_err(|m| RuleError::at(&file, None, m))?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    compile(&file, format, &ast, overrides, &base_dir)
+    compile(&file, &ast, overrides, &base_dir)
 }

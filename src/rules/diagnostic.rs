@@ -1,8 +1,16 @@
-//! Located rule-file errors, rendered with file:line:column and a caret.
+//! Located rule-file errors, rendered with `file:line:column` and a snippet
+//! with a caret under the offending text.
+//!
+//! One line-numbering function ([`line_column`]) serves the one-line
+//! headline and the snippet, so the two always agree. Line breaks are
+//! `\n`, `\r\n` and a lone `\r` (old Mac files); columns count characters.
+//! Lines longer than [`SNIPPET_WIDTH`] characters are shown as a window
+//! around the caret, so a one-line 100 KB file renders a readable snippet
+//! (and never trips a formatter's width limits).
 
+use std::fmt::Write as _;
 use std::ops::Range;
 
-use miette::{Diagnostic, NamedSource, SourceSpan};
 use thiserror::Error;
 
 /// A rule file's text and display name, kept for error rendering.
@@ -12,24 +20,26 @@ pub struct SourceFile {
     pub text: String,
 }
 
+/// Widest stretch of one source line a snippet shows, in characters.
+pub const SNIPPET_WIDTH: usize = 100;
+
 /// A rule-file error: what is wrong and where. Boxed so `Result`s that
 /// carry it stay small; fields are readable through `Deref`.
-#[derive(Debug, Error, Diagnostic)]
-#[error(transparent)]
-#[diagnostic(transparent)]
+#[derive(Debug, Error)]
+#[error("{}", .0.message)]
 pub struct RuleError(Box<LocatedError>);
 
 /// The content of a [`RuleError`].
-#[derive(Debug, Error, Diagnostic)]
-#[error("{message}")]
+#[derive(Debug)]
 pub struct LocatedError {
     pub message: String,
-    #[source_code]
-    pub source_code: NamedSource<String>,
-    #[label("{label}")]
-    pub span: Option<SourceSpan>,
+    /// Display name of the file.
+    pub file: String,
+    /// The file's text (for the snippet).
+    pub text: String,
+    /// Byte range the error is about, if any.
+    pub span: Option<Range<usize>>,
     pub label: String,
-    #[help]
     pub help: Option<String>,
     /// `file:line:column` (or just `file`) for the one-line form.
     pub location: String,
@@ -42,6 +52,11 @@ impl RuleError {
         span: Option<Range<usize>>,
         message: impl Into<String>,
     ) -> RuleError {
+        let span = span.map(|r| {
+            let start = floor_char_boundary(&file.text, r.start.min(file.text.len()));
+            let end = floor_char_boundary(&file.text, r.end.clamp(start, file.text.len()));
+            start..end
+        });
         let location = match &span {
             Some(range) => {
                 let (line, column) = line_column(&file.text, range.start);
@@ -49,14 +64,14 @@ impl RuleError {
             }
             None => file.name.clone(),
         };
-        let message = message.into();
         RuleError(Box::new(LocatedError {
+            message: message.into(),
+            file: file.name.clone(),
+            text: file.text.clone(),
+            span,
             label: "here".to_owned(),
-            span: span.map(|r| SourceSpan::new(r.start.into(), r.end.saturating_sub(r.start))),
-            source_code: NamedSource::new(file.name.clone(), file.text.clone()),
             help: None,
             location,
-            message,
         }))
     }
 
@@ -74,6 +89,86 @@ impl RuleError {
     pub fn headline(&self) -> String {
         format!("{}: {}", self.location, self.message)
     }
+
+    /// The message, the snippet with the caret and label, and the help,
+    /// as lines for a terminal (`color`: ANSI colours).
+    pub fn render(&self, color: bool) -> String {
+        let paint = |code: &str, s: &str| {
+            if color {
+                format!("\x1b[{code}m{s}\x1b[0m")
+            } else {
+                s.to_owned()
+            }
+        };
+        let mut out = String::new();
+        let _ = writeln!(out, "  {} {}", paint("31", "×"), self.message);
+        if let Some(span) = &self.span {
+            self.render_snippet(&mut out, span.clone(), &paint);
+        }
+        if let Some(help) = &self.help {
+            let _ = writeln!(out, "  {} {help}", paint("36", "help:"));
+        }
+        out
+    }
+
+    fn render_snippet(
+        &self,
+        out: &mut String,
+        span: Range<usize>,
+        paint: &dyn Fn(&str, &str) -> String,
+    ) {
+        let text = &self.text;
+        let lines = line_ranges(text);
+        let (line, _) = line_column(text, span.start);
+        let first = line.saturating_sub(1).max(1);
+        let mut last = (line + 1).min(lines.len());
+        // The empty "line" after a final line break is not worth showing.
+        if last > line && lines[last - 1].is_empty() {
+            last -= 1;
+        }
+        let gutter = last.to_string().len();
+        let pad = " ".repeat(gutter);
+        let _ = writeln!(out, "{pad} ╭─[{}]", self.location);
+        for number in first..=last {
+            let range = lines[number - 1].clone();
+            let content = &text[range.clone()];
+            if number != line {
+                let (shown, _) = window(content, 0, 0);
+                let _ = writeln!(out, "{number:>gutter$} │ {shown}");
+                continue;
+            }
+            // Caret columns in characters within this line.
+            let start = text[range.start..span.start.max(range.start)]
+                .chars()
+                .count();
+            let end_byte = span.end.clamp(span.start, range.end);
+            let width = text[span.start..end_byte].chars().count().max(1);
+            let (shown, offset) = window(content, start, width);
+            let _ = writeln!(out, "{number:>gutter$} │ {shown}");
+            let caret_at = start - offset;
+            let underline = if width == 1 {
+                "▲".to_owned()
+            } else {
+                let half = width / 2;
+                format!("{}┬{}", "─".repeat(half), "─".repeat(width - half - 1))
+            };
+            let _ = writeln!(
+                out,
+                "{pad} · {}{}",
+                " ".repeat(caret_at),
+                paint("35", &underline)
+            );
+            let stem = caret_at + if width == 1 { 0 } else { width / 2 };
+            let _ = writeln!(
+                out,
+                "{pad} · {}{} {}",
+                " ".repeat(stem),
+                paint("35", "╰──"),
+                self.label
+            );
+        }
+        let _ = writeln!(out, "{pad} ╰────");
+    }
 }
 
 impl std::ops::Deref for RuleError {
@@ -83,74 +178,142 @@ impl std::ops::Deref for RuleError {
     }
 }
 
-/// 1-based line and column (in characters) of a byte offset.
+/// At most [`SNIPPET_WIDTH`] characters of `line` around the characters
+/// `start..start + width` (tabs shown as one space, so carets line up),
+/// with `…` where it was cut; returns the text and how many characters
+/// of the line precede the first one shown (the `…` counted in).
+fn window(line: &str, start: usize, width: usize) -> (String, usize) {
+    let total = line.chars().count();
+    let clean = |s: &str| s.replace('\t', " ");
+    if total <= SNIPPET_WIDTH {
+        return (clean(line), 0);
+    }
+    let context = SNIPPET_WIDTH.saturating_sub(width.min(SNIPPET_WIDTH / 2)) / 2;
+    let from = start.saturating_sub(context);
+    let to = (from + SNIPPET_WIDTH).min(total);
+    let from = to.saturating_sub(SNIPPET_WIDTH).min(from);
+    let body: String = line.chars().skip(from).take(to - from).collect();
+    let mut shown = String::new();
+    let mut offset = from;
+    if from > 0 {
+        shown.push('…');
+        offset -= 1;
+    }
+    shown.push_str(&clean(&body));
+    if to < total {
+        shown.push('…');
+    }
+    (shown, offset)
+}
+
+/// Byte ranges of the lines of `text`, without their line breaks (`\n`,
+/// `\r\n` or a lone `\r`). A text ending in a break has an empty last line.
+pub fn line_ranges(text: &str) -> Vec<Range<usize>> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::new();
+    let mut start = 0;
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            b'\n' => {
+                out.push(start..i);
+                start = i + 1;
+            }
+            b'\r' => {
+                out.push(start..i);
+                if bytes.get(i + 1) == Some(&b'\n') {
+                    i += 1;
+                }
+                start = i + 1;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    out.push(start..bytes.len());
+    out
+}
+
+/// 1-based line and column (in characters) of a byte offset; line breaks
+/// as in [`line_ranges`].
 pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(text.len());
-    let before = &text[..floor_char_boundary(text, offset)];
-    let line = before.bytes().filter(|&b| b == b'\n').count() + 1;
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let column = before[line_start..].chars().count() + 1;
+    let offset = floor_char_boundary(text, offset.min(text.len()));
+    let bytes = text.as_bytes();
+    let mut line = 1;
+    let mut line_start = 0;
+    let mut i = 0;
+    while i < offset {
+        match bytes[i] {
+            b'\n' => {
+                line += 1;
+                line_start = i + 1;
+            }
+            b'\r' => {
+                if bytes.get(i + 1) == Some(&b'\n') {
+                    // The break is the pair; an offset between them is still on this line.
+                    if i + 1 >= offset {
+                        break;
+                    }
+                    i += 1;
+                }
+                line += 1;
+                line_start = i + 1;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    let column = text[line_start..offset].chars().count() + 1;
     (line, column)
 }
 
-/// Byte offset of a 1-based line and column (in characters).
-pub fn offset_of(text: &str, line: usize, column: usize) -> usize {
-    let mut offset = 0;
-    for (i, l) in text.split_inclusive('\n').enumerate() {
-        if i + 1 == line {
-            let within: usize = l
-                .chars()
-                .take(column.saturating_sub(1))
-                .map(char::len_utf8)
-                .sum();
-            return offset + within;
+/// The span of a string's content inside the span of its literal (TOML's
+/// `"…"`, `'…'`, `"""…"""`, `'''…'''`, RON's `"…"` and `r#"…"#`), for
+/// locating an error inside an expression. A value that is not a quoted
+/// literal (a bare number) gives its own span.
+pub fn content_span(text: &str, literal: Range<usize>, content: &str) -> Range<usize> {
+    let raw = text.get(literal.clone()).unwrap_or("");
+    let quote = if raw.starts_with("\"\"\"") || raw.starts_with("'''") {
+        3
+    } else if raw.starts_with('"') || raw.starts_with('\'') {
+        1
+    } else if let Some(rest) = raw.strip_prefix('r') {
+        let hashes = rest.len() - rest.trim_start_matches('#').len();
+        if rest[hashes..].starts_with('"') {
+            2 + hashes
+        } else {
+            0
         }
-        offset += l.len();
-    }
-    text.len()
+    } else {
+        0
+    };
+    let start = literal.start + quote;
+    start..(start + content.len()).min(text.len())
 }
 
-fn floor_char_boundary(text: &str, mut offset: usize) -> usize {
+pub(crate) fn floor_char_boundary(text: &str, mut offset: usize) -> usize {
     while !text.is_char_boundary(offset) {
         offset -= 1;
     }
     offset
 }
 
-/// Span of the first string literal whose content is `content` — the RON
-/// fallback for values the RON deserializer gives no span for.
-pub fn find_literal(text: &str, content: &str) -> Option<Range<usize>> {
-    for quote in ['"', '\''] {
-        let needle = format!("{quote}{content}{quote}");
-        if let Some(i) = text.find(&needle) {
-            return Some(i + 1..i + 1 + content.len());
-        }
-    }
-    None
-}
-
-/// Span of the first occurrence of a key `name` followed by `:` or `=`.
-pub fn find_key(text: &str, name: &str) -> Option<Range<usize>> {
-    let mut start = 0;
-    while let Some(i) = text[start..].find(name) {
-        let at = start + i;
-        let before_ok = at == 0
-            || !text[..at]
-                .chars()
-                .next_back()
-                .is_some_and(|c| c.is_alphanumeric() || c == '_');
-        let rest = text[at + name.len()..].trim_start();
-        if before_ok && (rest.starts_with(':') || rest.starts_with('=')) {
-            return Some(at..at + name.len());
-        }
-        start = at + name.len();
-    }
-    None
+/// The byte offset at which `bytes` stop being UTF-8, if they do: for
+/// locating a rule file that is not text.
+pub fn invalid_utf8_offset(bytes: &[u8]) -> Option<usize> {
+    std::str::from_utf8(bytes).err().map(|e| e.valid_up_to())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn file(text: &str) -> SourceFile {
+        SourceFile {
+            name: "f.toml".into(),
+            text: text.into(),
+        }
+    }
 
     #[test]
     fn line_column_counts_characters_from_one() {
@@ -159,17 +322,75 @@ mod tests {
         assert_eq!(line_column(text, 6), (2, 1));
         let quote = text.find('"').unwrap();
         assert_eq!(line_column(text, quote), (2, 6));
-        assert_eq!(offset_of(text, 2, 6), quote);
     }
 
     #[test]
-    fn literal_and_key_search() {
-        let text = "(params: {\"w\": \"1 +\"}, step: [(name: \"x\")])";
-        assert_eq!(find_literal(text, "1 +"), Some(16..19));
+    fn every_line_break_style_counts_once() {
+        for text in ["a\nb\nc = x", "a\r\nb\r\nc = x", "a\rb\rc = x"] {
+            let x = text.find('x').unwrap();
+            assert_eq!(line_column(text, x), (3, 5), "{text:?}");
+            assert_eq!(line_ranges(text).len(), 3);
+        }
+        // Mixed: CRLF, then a lone CR, then LF.
+        let text = "a\r\nb\rc\nd";
+        assert_eq!(line_column(text, text.find('d').unwrap()), (4, 1));
+    }
+
+    #[test]
+    fn snippet_header_and_headline_agree_for_cr_only_files() {
+        let text = "[params]\rw = 1\rh = \"w +\"\r";
+        let at = text.find("w +").unwrap();
+        let e = RuleError::at(&file(text), Some(at..at + 3), "bad");
+        assert_eq!(e.location, "f.toml:3:6");
+        let rendered = e.render(false);
+        assert!(rendered.contains("╭─[f.toml:3:6]"), "{rendered}");
+        assert!(rendered.contains("3 │ h = \"w +\""), "{rendered}");
+    }
+
+    #[test]
+    fn a_caret_past_column_65535_renders_a_window() {
+        let mut text = "x = [".to_owned();
+        text.push_str(&"1,".repeat(40_000));
+        let at = text.len();
+        text.push('\n');
+        let e = RuleError::at(&file(&text), Some(at..at + 1), "unclosed array");
+        assert_eq!(e.location, format!("f.toml:1:{}", at + 1));
+        let rendered = e.render(false);
+        assert!(rendered.len() < 1_000, "{} bytes", rendered.len());
+        let lines: Vec<&str> = rendered.lines().collect();
+        let shown = lines.iter().find(|l| l.starts_with("1 │ ")).unwrap();
+        let caret = lines.iter().find(|l| l.contains('▲')).unwrap();
+        // The caret sits one past the last shown character (the end of the line).
         assert_eq!(
-            find_key(text, "name"),
-            Some(text.find("name").unwrap()..text.find("name").unwrap() + 4)
+            caret.chars().position(|c| c == '▲'),
+            Some(shown.chars().count())
         );
-        assert_eq!(find_key(text, "nam"), None);
+        assert!(shown.starts_with("1 │ …1,1,"));
+    }
+
+    #[test]
+    fn caret_lines_up_in_a_window_in_the_middle_of_a_long_line() {
+        let text = format!("{}zzz{}", "a".repeat(5_000), "b".repeat(5_000));
+        let e = RuleError::at(&file(&text), Some(5_000..5_003), "unknown name `zzz`");
+        let rendered = e.render(false);
+        let lines: Vec<&str> = rendered.lines().collect();
+        let shown = lines.iter().find(|l| l.starts_with("1 │ ")).unwrap();
+        let under = lines.iter().find(|l| l.contains('┬')).unwrap();
+        let z = shown.chars().position(|c| c == 'z').unwrap();
+        assert_eq!(under.chars().position(|c| c == '─'), Some(z));
+        assert!(shown.ends_with('…') && shown.chars().count() < SNIPPET_WIDTH + 10);
+    }
+
+    #[test]
+    fn spans_are_clamped_into_the_text() {
+        let e = RuleError::at(&file("a = é"), Some(5..99), "x");
+        assert_eq!(e.span, Some(4..6));
+        assert!(e.render(false).contains('▲'));
+    }
+
+    #[test]
+    fn invalid_utf8_is_found() {
+        assert_eq!(invalid_utf8_offset(b"ab\xffc"), Some(2));
+        assert_eq!(invalid_utf8_offset("é".as_bytes()), None);
     }
 }

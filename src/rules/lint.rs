@@ -34,10 +34,10 @@ use super::compile::{
     self, allowed_domains, domain_of, property_for, property_from_index, property_index, Override,
     PROPERTY_SLOTS,
 };
-use super::diagnostic::{find_key, find_literal, line_column, RuleError, SourceFile};
+use super::diagnostic::{content_span, line_column, RuleError, SourceFile};
 use super::expr::{Binary, Expr, Ternary, Tree, Unary};
 use super::program::{ParamKind, Program, Property};
-use super::spanned::{SourceFormat, Spanned};
+use super::spanned::Spanned;
 
 /// How bad a finding is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -83,6 +83,7 @@ pub const CODES: &[&str] = &[
     "probability-range",
     "never-true",
     "always-true",
+    "unnamed-random-step",
 ];
 
 /// Lints a rule file. `Err` when it does not parse or compile (a located
@@ -91,18 +92,18 @@ pub const CODES: &[&str] = &[
 /// reported.
 pub fn lint_file(path: &Path, overrides: &[Override]) -> Result<Vec<Finding>, RuleError> {
     let (file, ast) = compile::load(path)?;
-    let format = compile::format_of(path).map_err(|m| RuleError::at(&file, None, m))?;
-    let linter = Linter::new(&file, format, &ast);
+    let linter = Linter::new(&file, &ast);
     let sites = linter.sites();
     let undefined = linter.undefined_names(&sites);
     if !undefined.is_empty() {
         return Ok(undefined);
     }
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let program = compile::compile(&file, format, &ast, overrides, &base_dir)?;
+    let program = compile::compile(&file, &ast, overrides, &base_dir)?;
     let mut findings = Vec::new();
     linter.unused_params(&sites, &mut findings);
     linter.unused_definitions(&mut findings);
+    linter.unnamed_random_steps(&mut findings);
     linter.conditions(&sites, &program, &mut findings);
     findings.sort_by(|a, b| {
         (std::cmp::Reverse(a.severity), a.offset, a.code, &a.message).cmp(&(
@@ -140,23 +141,17 @@ struct Site<'a> {
 
 struct Linter<'a> {
     file: &'a SourceFile,
-    format: SourceFormat,
     ast: &'a RuleFile,
     /// Parameter names by slot (sorted, as the compiler assigns them).
     params: Vec<String>,
 }
 
 impl<'a> Linter<'a> {
-    fn new(file: &'a SourceFile, format: SourceFormat, ast: &'a RuleFile) -> Self {
+    fn new(file: &'a SourceFile, ast: &'a RuleFile) -> Self {
         let mut params: Vec<String> = ast.params.0.iter().map(|(n, _)| n.value.clone()).collect();
         params.sort();
         params.dedup();
-        Linter {
-            file,
-            format,
-            ast,
-            params,
-        }
+        Linter { file, ast, params }
     }
 
     fn location(&self, span: Option<&Span<usize>>) -> (String, usize) {
@@ -188,30 +183,12 @@ impl<'a> Linter<'a> {
         }
     }
 
-    /// Where a string value's content starts (TOML spans include quotes;
-    /// RON has none, so the literal is searched for).
+    /// Where a string value's content is (spans include the quotes).
     fn content_span<T>(&self, spanned: &Spanned<T>, content: &str) -> Option<Span<usize>> {
-        match &spanned.span {
-            Some(span) => {
-                let raw = &self.file.text[span.clone()];
-                let quote = if raw.starts_with("\"\"\"") || raw.starts_with("'''") {
-                    3
-                } else if raw.starts_with('"') || raw.starts_with('\'') {
-                    1
-                } else {
-                    0
-                };
-                Some(span.start + quote..span.start + quote + content.len())
-            }
-            None => find_literal(&self.file.text, content),
-        }
-    }
-
-    fn key_span<T>(&self, spanned: &Spanned<T>, key: &str) -> Option<Span<usize>> {
-        spanned.span.clone().or_else(|| match self.format {
-            SourceFormat::Ron => find_key(&self.file.text, key),
-            SourceFormat::Toml => None,
-        })
+        spanned
+            .span
+            .as_ref()
+            .map(|span| content_span(&self.file.text, span.clone(), content))
     }
 
     // ---- collecting expressions ------------------------------------------
@@ -222,7 +199,7 @@ impl<'a> Linter<'a> {
             self.ast.params.0.iter().collect();
         declared.sort_by(|a, b| a.0.value.cmp(&b.0.value));
         for (name, spec) in declared.iter().map(|p| (&p.0, &p.1)) {
-            let Some(slot) = self.params.iter().position(|p| *p == name.value) else {
+            let Ok(slot) = self.params.binary_search(&name.value) else {
                 continue;
             };
             let context = Context::Param(slot);
@@ -491,7 +468,7 @@ impl<'a> Linter<'a> {
             Context::Param(_) | Context::Operator => None,
         };
         let resolver = |name: &str| -> Option<u32> {
-            if let Some(slot) = self.params.iter().position(|p| p == name) {
+            if let Ok(slot) = self.params.binary_search_by(|p| p.as_str().cmp(name)) {
                 used.borrow_mut().insert(slot);
                 return Some(slot as u32);
             }
@@ -576,14 +553,14 @@ impl<'a> Linter<'a> {
             }
         }
         for (name, _) in &self.ast.params.0 {
-            let Some(slot) = self.params.iter().position(|p| *p == name.value) else {
+            let Ok(slot) = self.params.binary_search(&name.value) else {
                 continue;
             };
             if !used[slot] {
                 out.push(self.finding(
                     Severity::Warning,
                     "unused-param",
-                    self.key_span(name, &name.value).as_ref(),
+                    name.span.clone().as_ref(),
                     format!("parameter `{}` is never used", name.value),
                     Some("remove it, or use it in an expression".to_owned()),
                 ));
@@ -641,12 +618,56 @@ impl<'a> Linter<'a> {
                 out.push(self.finding(
                     Severity::Warning,
                     code,
-                    self.key_span(name, &name.value).as_ref(),
+                    name.span.clone().as_ref(),
                     format!("{kind} `{}` is never {verb}", name.value),
                     Some(format!(
                         "{how} it with a step `{kind} = \"{}\"`, or remove it",
                         name.value
                     )),
+                ));
+            }
+        }
+    }
+
+    /// Steps that draw random values but have no `name`: their stream is
+    /// keyed by position, so inserting a step before them re-rolls them.
+    fn unnamed_random_steps(&self, out: &mut Vec<Finding>) {
+        let every_step = self
+            .ast
+            .start
+            .iter()
+            .chain(&self.ast.steps)
+            .chain(self.ast.rules.0.iter().flat_map(|(_, r)| &r.steps))
+            .chain(self.ast.compound.0.iter().flat_map(|(_, c)| &c.steps));
+        for step in every_step.filter(|s| s.name.is_none()) {
+            let reads_random = step
+                .select
+                .as_ref()
+                .is_some_and(|s| mentions(&s.value, "random"));
+            let varies = match step.op.as_ref().map(|(_, op)| &op.value) {
+                Some(
+                    ast::Operation::CreateEdge(c)
+                    | ast::Operation::SplitEdge(c)
+                    | ast::Operation::CreateFace(c)
+                    | ast::Operation::SplitFace(c)
+                    | ast::Operation::EditNode(c),
+                ) => {
+                    c.probability.is_some()
+                        || c.vary_length.is_some()
+                        || c.vary_radius.is_some()
+                        || c.vary_turn.is_some()
+                        || c.vary_pitch.is_some()
+                        || c.vary_roll.is_some()
+                }
+                _ => false,
+            };
+            if reads_random || varies {
+                out.push(self.finding(
+                    Severity::Warning,
+                    "unnamed-random-step",
+                    step.span.as_ref(),
+                    "this step draws random values but has no `name`: its draws are keyed by its position, so inserting a step before it changes them".to_owned(),
+                    Some("give it a `name = \"...\"`".to_owned()),
                 ));
             }
         }
@@ -736,6 +757,15 @@ impl<'a> Linter<'a> {
 }
 
 /// Byte offset of `name` as a whole name in an expression's text.
+/// Whether `text` uses the identifier `name` (not as part of a longer one).
+fn mentions(text: &str, name: &str) -> bool {
+    text.match_indices(name).any(|(i, _)| {
+        let ident = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '.';
+        !text[..i].chars().next_back().is_some_and(ident)
+            && !text[i + name.len()..].chars().next().is_some_and(ident)
+    })
+}
+
 fn name_offset(text: &str, name: &str) -> Option<usize> {
     let bytes = text.as_bytes();
     let is_name = |b: u8| b.is_ascii_alphanumeric() || b == b'_' || b == b'.';

@@ -13,6 +13,7 @@ pub mod expr;
 pub mod lint;
 pub mod program;
 pub mod random;
+pub mod ron;
 pub mod schema;
 pub mod spanned;
 

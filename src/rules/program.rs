@@ -3,6 +3,7 @@
 //! engine never re-checks it.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use crate::kernel::ops::delete::DeleteMode;
 use crate::kernel::ops::select::Adjacency;
@@ -43,6 +44,21 @@ pub struct Program {
     /// Whether any step may cancel a compound or a rule application, so
     /// the engine keeps snapshots to roll back to.
     pub may_cancel: bool,
+    /// Every file the program needs, each once, in first-use order: the
+    /// caller reads them before the run (the engine does no I/O) and hands
+    /// them over by index ([`Op::Import`]'s `resource`).
+    pub resources: Vec<Resource>,
+}
+
+/// A file a rule file refers to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Resource {
+    /// Resolved against the rule file's directory.
+    pub path: PathBuf,
+    /// The path as written.
+    pub written: String,
+    /// `file:line:column` of the path, for errors about the file.
+    pub location: String,
 }
 
 /// What happens when a product of a command under `policy = "intersect"`
@@ -218,6 +234,10 @@ pub struct Condition {
     pub expr: Expr,
 }
 
+/// One step of the program, as it runs: its place (uid, path), what it
+/// reads, and its compiled body. Copies of one written step (`repeat`, a
+/// rule included several times) share the body, so a program costs a few
+/// dozen bytes per unrolled step, not a compiled operator each.
 #[derive(Debug, Clone)]
 pub struct Step {
     /// Unique over the program (compound contents included), in program
@@ -227,23 +247,36 @@ pub struct Step {
     pub name: String,
     /// Random stream key (`step/NAME`).
     pub key: u64,
-    /// `file:line:column` of the step's operator, for runtime errors.
-    pub location: String,
-    /// Element kind the step selects.
-    pub domain: Domain,
-    pub select: Option<Condition>,
     /// Uids of the earlier step whose created elements are the candidates
     /// (every copy of a repeated step).
     pub from: Option<Vec<u32>>,
-    pub op: Op,
-    /// The step's own policy (G³ commands and compounds); `None` inherits
-    /// the enclosing compound call's, or the file's.
-    pub policy: Option<Policy>,
     /// The step's own reaction to intersections; `None` inherits.
     pub on_intersection: Option<OnIntersection>,
     /// The rule applications the step belongs to, outermost first: one
     /// number per include (and per repeat of it), unique in the program.
     pub rule_instances: Vec<u32>,
+    pub body: Arc<StepBody>,
+}
+
+/// What a written step does, compiled once for all its copies.
+#[derive(Debug)]
+pub struct StepBody {
+    /// `file:line:column` of the step's operator, for runtime errors.
+    pub location: String,
+    /// Element kind the step selects.
+    pub domain: Domain,
+    pub select: Option<Condition>,
+    pub op: Op,
+    /// The step's own policy (G³ commands and compounds); `None` inherits
+    /// the enclosing compound call's, or the file's.
+    pub policy: Option<Policy>,
+}
+
+impl std::ops::Deref for Step {
+    type Target = StepBody;
+    fn deref(&self) -> &StepBody {
+        &self.body
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -285,8 +318,9 @@ pub enum Op {
         depth: Scalar,
         caps: bool,
     },
+    /// Appends the mesh of [`Program::resources`]`[resource]`.
     Import {
-        path: PathBuf,
+        resource: usize,
     },
     Translate {
         offset: Vector,

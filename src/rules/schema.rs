@@ -443,7 +443,12 @@ fn step(kind: StepKind) -> Value {
                     _ => unreachable!(),
                 }
             };
-            p.insert("on".into(), json!({ "enum": allowed_on(op) }));
+            // `"vertices"` is accepted for `"verts"`.
+            let mut on: Vec<&str> = allowed_on(op).to_vec();
+            if on.contains(&"verts") {
+                on.push("vertices");
+            }
+            p.insert("on".into(), json!({ "enum": on }));
             Value::Object(p)
         };
         choice["properties"] = restricted;
@@ -510,7 +515,7 @@ pub fn schema() -> Value {
     );
     definitions.insert(
         "domain".into(),
-        json!({ "enum": ["verts", "edges", "faces"] }),
+        json!({ "enum": ["verts", "vertices", "edges", "faces"] }),
     );
     definitions.insert(
         "policy".into(),
@@ -715,13 +720,9 @@ pub fn to_json(text: &str, format: SourceFormat) -> Result<Value, String> {
             let v: toml::Value = toml::from_str(text).map_err(|e| e.to_string())?;
             serde_json::to_value(v).map_err(|e| e.to_string())
         }
-        SourceFormat::Ron => {
-            let v: ron::Value = ron::Options::default()
-                .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
-                .from_str(text)
-                .map_err(|e| e.to_string())?;
-            Ok(ron_to_json(v))
-        }
+        SourceFormat::Ron => super::ron::parse(text)
+            .map(ron_to_json)
+            .map_err(|e| e.to_string()),
     }
 }
 
@@ -732,40 +733,37 @@ pub fn file_to_json(path: &Path) -> Result<Value, RuleError> {
     to_json(&file.text, format).map_err(|m| RuleError::at(&file, None, m))
 }
 
-fn ron_to_json(v: ron::Value) -> Value {
-    match v {
-        ron::Value::Bool(b) => Value::Bool(b),
-        ron::Value::Char(c) => Value::String(c.to_string()),
-        ron::Value::String(s) => Value::String(s),
-        ron::Value::Number(n) => match n {
-            ron::Number::I8(x) => json!(x),
-            ron::Number::I16(x) => json!(x),
-            ron::Number::I32(x) => json!(x),
-            ron::Number::I64(x) => json!(x),
-            ron::Number::U8(x) => json!(x),
-            ron::Number::U16(x) => json!(x),
-            ron::Number::U32(x) => json!(x),
-            ron::Number::U64(x) => json!(x),
-            ron::Number::F32(x) => json!(x.get()),
-            ron::Number::F64(x) => json!(x.get()),
-            #[allow(unreachable_patterns)]
-            _ => Value::Null,
+fn ron_to_json(v: super::ron::Value) -> Value {
+    use super::ron::Kind;
+    match v.kind {
+        Kind::Bool(b) => Value::Bool(b),
+        Kind::Char(c) => Value::String(c.to_string()),
+        Kind::Str(s) => Value::String(s),
+        // Enum variants (`on: faces`) are strings in the TOML form.
+        Kind::Ident(name) if name == "None" => Value::Null,
+        Kind::Ident(name) => Value::String(name),
+        Kind::Integer(x) => match i64::try_from(x) {
+            Ok(x) => json!(x),
+            Err(_) => u64::try_from(x).map_or(json!(x as f64), |x| json!(x)),
         },
-        ron::Value::Option(Some(inner)) => ron_to_json(*inner),
-        ron::Value::Option(None) => Value::Null,
-        ron::Value::Bytes(b) => Value::Array(b.into_iter().map(|x| json!(x)).collect()),
-        ron::Value::Seq(items) => Value::Array(items.into_iter().map(ron_to_json).collect()),
+        Kind::Float(x) => json!(x),
+        Kind::Tuple(Some(name), mut items) if name == "Some" && items.len() == 1 => {
+            ron_to_json(items.pop().expect("one item"))
+        }
+        Kind::List(items) | Kind::Tuple(_, items) => {
+            Value::Array(items.into_iter().map(ron_to_json).collect())
+        }
         // `()` is an empty struct: `triangulate: ()`.
-        ron::Value::Unit => Value::Object(Map::new()),
-        ron::Value::Map(map) => {
+        Kind::Unit => Value::Object(Map::new()),
+        Kind::Struct(_, entries) | Kind::Map(entries) => {
             let mut out = Map::new();
-            for (k, v) in map {
+            for (k, v) in entries {
                 let key = match ron_to_json(k) {
                     Value::String(s) => s,
                     other => other.to_string(),
                 };
                 // An absent optional key and `None` mean the same.
-                if matches!(v, ron::Value::Option(None)) {
+                if matches!(&v.kind, Kind::Ident(n) if n == "None") {
                     continue;
                 }
                 out.insert(key, ron_to_json(v));

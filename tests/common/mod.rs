@@ -17,7 +17,7 @@ pub fn program(text: &str) -> Result<Program, RuleError> {
         text: text.into(),
     };
     let ast = parse(&file, SourceFormat::Toml)?;
-    compile(&file, SourceFormat::Toml, &ast, &[], Path::new("rules"))
+    compile(&file, &ast, &[], Path::new("rules"))
 }
 
 /// Asserts that each rule text fails to compile with a headline that
@@ -40,10 +40,26 @@ pub fn toml(text: &str) -> Program {
     program(text).unwrap_or_else(|e| panic!("{}", e.headline()))
 }
 
+/// Reads and decodes a mesh file (format by extension).
+pub fn read_mesh(path: &Path) -> graftal::io::IndexedMesh {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let format = graftal::io::MeshFormat::from_path(path).unwrap();
+    graftal::io::decode(&bytes, format, path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The files a program imports, read as the command line would.
+pub fn inputs(p: &Program) -> std::sync::Arc<[std::sync::Arc<graftal::io::IndexedMesh>]> {
+    p.resources
+        .iter()
+        .map(|r| std::sync::Arc::new(read_mesh(&r.path)))
+        .collect()
+}
+
 /// Runs a program with the kernel validated after every step.
 pub fn run_validated(p: &Program, options: RunOptions) -> RunOutput {
     let options = RunOptions {
         validate_each_step: true,
+        inputs: inputs(p),
         ..options
     };
     let out = run(p, &options).unwrap_or_else(|e| panic!("{e}"));

@@ -99,6 +99,7 @@ use glam::DVec3;
 use rustc_hash::FxHashMap;
 
 pub use bvh::IntersectionIndex;
+pub use pairs::{PairLimits, PairSearch};
 
 use super::ids::{Domain, EdgeId, FaceId, VertId};
 use super::mesh::Mesh;
@@ -693,6 +694,34 @@ fn mesh_pairs(mesh: &Mesh, wires: Option<WireThickness>) -> Vec<(Element, Elemen
     pairs::intersecting_pairs(soup, threads)
 }
 
+/// [`self_intersections`] within bounds on time and memory: every pair
+/// counted, the first `limits.keep` kept, the search stopped (and said to
+/// be incomplete) after `limits.max_tests` tests. [`PairLimits::for_items`]
+/// of the face count suits reports; the answer never depends on the thread
+/// count.
+pub fn self_intersection_search(
+    mesh: &Mesh,
+    limits: impl FnOnce(usize) -> PairLimits,
+) -> PairSearch<(FaceId, FaceId)> {
+    let build_threads = bvh::threads_for(2 * mesh.face_count());
+    let soup = pairs::mesh_soup(mesh, None, build_threads);
+    let threads = bvh::threads_for(soup.len());
+    let limits = limits(soup.len());
+    let found = pairs::search_pairs(soup, threads, limits);
+    PairSearch {
+        count: found.count,
+        pairs: found
+            .pairs
+            .into_iter()
+            .filter_map(|pair| match pair {
+                (Element::Face(a), Element::Face(b)) => Some((a, b)),
+                _ => None,
+            })
+            .collect(),
+        complete: found.complete,
+    }
+}
+
 /// [`self_intersections`] with wire edges too, tested as capsules of the
 /// given thickness against faces and against each other.
 pub fn self_intersections_with(mesh: &Mesh, wires: WireThickness) -> SelfIntersections {
@@ -710,6 +739,80 @@ pub fn self_intersections_with(mesh: &Mesh, wires: WireThickness) -> SelfInterse
 }
 
 // ---- close vertices ----
+
+/// How many pairs of distinct points are at most `tolerance` apart, with
+/// bounded time and memory on degenerate input (24,000 vertices at three
+/// positions are 96 million pairs): identical positions are merged first
+/// and counted as `k (k - 1) / 2`, the rest through a hash grid of the
+/// distinct positions, and the search stops after `max_tests` distance
+/// tests (`complete` is then `false` and the count a lower bound).
+/// Non-finite points are skipped; `tolerance <= 0` counts identical ones.
+pub fn count_close_points(points: &[DVec3], tolerance: f64, max_tests: u64) -> PairSearch<()> {
+    // Distinct positions with their multiplicities (−0 folded onto +0).
+    let mut keyed: Vec<[u64; 3]> = points
+        .iter()
+        .filter(|p| p.is_finite())
+        .map(|p| p.to_array().map(|x| (x + 0.0).to_bits()))
+        .collect();
+    keyed.sort_unstable();
+    let mut distinct: Vec<(DVec3, u64)> = Vec::new();
+    let mut count: u64 = 0;
+    for run in keyed.chunk_by(|a, b| a == b) {
+        let k = run.len() as u64;
+        count = count.saturating_add(k * (k - 1) / 2);
+        distinct.push((DVec3::from_array(run[0].map(f64::from_bits)), k));
+    }
+    let mut out = PairSearch {
+        count,
+        pairs: Vec::new(),
+        complete: true,
+    };
+    if !(tolerance > 0.0 && tolerance.is_finite()) {
+        return out;
+    }
+    let cell = 2.0 * tolerance;
+    let coord = |x: f64| (x / cell).floor() as i64;
+    let mut grid: FxHashMap<[i64; 3], Vec<u32>> = FxHashMap::default();
+    for (index, (p, _)) in distinct.iter().enumerate() {
+        grid.entry(p.to_array().map(coord))
+            .or_default()
+            .push(index as u32);
+    }
+    let tol2 = tolerance * tolerance;
+    let mut budget = max_tests;
+    for (index, &(p, weight)) in distinct.iter().enumerate() {
+        let home = p.to_array().map(coord);
+        for dx in -1..=1i64 {
+            for dy in -1..=1i64 {
+                for dz in -1..=1i64 {
+                    let key = [
+                        home[0].saturating_add(dx),
+                        home[1].saturating_add(dy),
+                        home[2].saturating_add(dz),
+                    ];
+                    let Some(bucket) = grid.get(&key) else {
+                        continue;
+                    };
+                    for &other in bucket {
+                        if other as usize <= index {
+                            continue;
+                        }
+                        let Some(left) = budget.checked_sub(1) else {
+                            out.complete = false;
+                            return out;
+                        };
+                        budget = left;
+                        let (q, w) = distinct[other as usize];
+                        if p.distance_squared(q) <= tol2 {
+                            out.count = out.count.saturating_add(weight.saturating_mul(w));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
 
 /// All pairs of distinct vertices at most `tolerance` apart (Euclidean),
 /// smaller id first, sorted. A hash grid makes it linear in the vertex count

@@ -35,7 +35,7 @@
 //! The result is a sorted set of element pairs, so it does not depend on
 //! the tree's shape, the thread count or the order tasks were taken in.
 
-use std::collections::VecDeque;
+use std::collections::{BinaryHeap, VecDeque};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::DVec3;
@@ -93,6 +93,9 @@ struct Chunk {
     start: u32,
     end: u32,
     owner: Element,
+    /// Whether the owner has other chunks: only then can one element pair
+    /// be found through two chunk pairs (so only then is it remembered).
+    shared: bool,
 }
 
 /// Up to this many consecutive triangles of one face form one chunk: a
@@ -108,6 +111,7 @@ fn push_chunks(
     bounds: impl Fn(usize) -> Option<(DVec3, DVec3)>,
     out: &mut Vec<Chunk>,
 ) {
+    let first = out.len();
     let mut open: Option<(usize, DVec3, DVec3)> = None;
     let close = |open: &mut Option<(usize, DVec3, DVec3)>, end: usize, out: &mut Vec<Chunk>| {
         if let Some((start, lo, hi)) = open.take() {
@@ -116,6 +120,7 @@ fn push_chunks(
                 start: start as u32,
                 end: end as u32,
                 owner,
+                shared: false,
             });
         }
     };
@@ -134,6 +139,11 @@ fn push_chunks(
         }
     }
     close(&mut open, run.end, out);
+    if out.len() - first > 1 {
+        for chunk in &mut out[first..] {
+            chunk.shared = true;
+        }
+    }
 }
 
 impl Soup {
@@ -612,7 +622,109 @@ fn build(
 
 // ---- the descent ----
 
-type Found = FxHashSet<(Element, Element)>;
+/// Bounds on a pair search, so that degenerate input (thousands of
+/// coincident triangles, a face over four vertices repeated 12,000 times)
+/// costs bounded time and memory: every pair is counted, but only the
+/// smallest `keep` are kept, and the search stops after `max_tests`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PairLimits {
+    /// Pairs kept: the first ones in canonical (sorted) order.
+    pub keep: usize,
+    /// Tests allowed (a chunk pair's box test, an item pair's primitive
+    /// test), shared equally by the search's tasks.
+    pub max_tests: u64,
+}
+
+impl PairLimits {
+    /// Every pair, however long it takes (tests and small meshes).
+    pub const UNLIMITED: PairLimits = PairLimits {
+        keep: usize::MAX,
+        max_tests: u64::MAX,
+    };
+
+    /// What `info` and the stats use: 1,000 pairs kept, and on the order
+    /// of a hundred tests per item (a smooth 180k-triangle sphere needs
+    /// about eight) before the search gives up.
+    pub fn for_items(items: usize) -> PairLimits {
+        PairLimits {
+            keep: 1_000,
+            max_tests: (items as u64)
+                .saturating_mul(128)
+                .saturating_add(20_000_000),
+        }
+    }
+}
+
+/// What a pair search found.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PairSearch<T> {
+    /// Distinct intersecting pairs found (all of them when `complete`).
+    pub count: u64,
+    /// The smallest [`PairLimits::keep`] of them, sorted.
+    pub pairs: Vec<T>,
+    /// Whether the search ran to the end (within [`PairLimits::max_tests`]).
+    pub complete: bool,
+}
+
+/// What one task of the descent found, within its share of the tests.
+struct Found {
+    /// Pairs of elements of one chunk each: found through one chunk pair
+    /// only, so they are counted without being remembered.
+    single: u64,
+    /// Pairs with an element of several chunks (large n-gons), remembered
+    /// so that a second chunk pair of the same elements is not counted
+    /// again. Looked up only, never iterated into output order.
+    shared: FxHashSet<(Element, Element)>,
+    /// The smallest `keep` pairs, as a max-heap.
+    smallest: BinaryHeap<(Element, Element)>,
+    keep: usize,
+    budget: u64,
+    exhausted: bool,
+}
+
+impl Found {
+    fn new(keep: usize, budget: u64) -> Found {
+        Found {
+            single: 0,
+            shared: FxHashSet::default(),
+            smallest: BinaryHeap::new(),
+            keep,
+            budget,
+            exhausted: false,
+        }
+    }
+
+    /// Takes one test from the budget; `false` once it is spent.
+    #[inline]
+    fn spend(&mut self) -> bool {
+        match self.budget.checked_sub(1) {
+            Some(left) => {
+                self.budget = left;
+                true
+            }
+            None => {
+                self.exhausted = true;
+                false
+            }
+        }
+    }
+
+    fn insert(&mut self, key: (Element, Element), shared: bool) {
+        if shared {
+            if !self.shared.insert(key) {
+                return;
+            }
+        } else {
+            self.single += 1;
+        }
+        if self.keep > 0 {
+            self.smallest.push(key);
+            if self.smallest.len() > self.keep {
+                self.smallest.pop();
+            }
+        }
+    }
+}
 
 impl Tree {
     #[inline]
@@ -625,12 +737,13 @@ impl Tree {
     #[inline]
     fn chunk_pair(&self, ca: usize, cb: usize, found: &mut Found) {
         let (a, b) = (&self.chunks[ca], &self.chunks[cb]);
-        if a.owner == b.owner || !a.bounds.overlaps(&b.bounds) {
+        if a.owner == b.owner || !found.spend() || !a.bounds.overlaps(&b.bounds) {
             return;
         }
         let key = (a.owner.min(b.owner), a.owner.max(b.owner));
-        // Skip pairs already found (the set is usually empty: no hashing).
-        if !found.is_empty() && found.contains(&key) {
+        let shared = a.shared || b.shared;
+        // Skip pairs already found (only elements of several chunks repeat).
+        if shared && found.shared.contains(&key) {
             return;
         }
         let boxes = &self.soup.boxes;
@@ -641,10 +754,10 @@ impl Tree {
         let hit = ra.into_iter().any(|i| {
             let bi = boxes[i];
             rb.clone()
-                .any(|j| bi.overlaps(&boxes[j]) && self.soup.intersect(i, j))
+                .any(|j| bi.overlaps(&boxes[j]) && found.spend() && self.soup.intersect(i, j))
         });
         if hit {
-            found.insert(key);
+            found.insert(key, shared);
         }
     }
 
@@ -693,9 +806,14 @@ impl Tree {
         true
     }
 
-    /// The simultaneous descent from the node pairs in `stack` to the end.
+    /// The simultaneous descent from the node pairs in `stack` to the end
+    /// (or until the task's tests are spent).
     fn descend(&self, stack: &mut Vec<(u32, u32)>, found: &mut Found) {
         while let Some((a, b)) = stack.pop() {
+            if found.exhausted {
+                stack.clear();
+                return;
+            }
             if self.expand((a, b), stack) {
                 continue;
             }
@@ -722,55 +840,89 @@ impl Tree {
 /// element first, sorted and deduplicated, found on `threads` threads (the
 /// result does not depend on it). A face's triangles must be consecutive.
 pub(crate) fn intersecting_pairs(soup: Soup, threads: usize) -> Vec<(Element, Element)> {
+    search_pairs(soup, threads, PairLimits::UNLIMITED).pairs
+}
+
+/// [`intersecting_pairs`] within `limits`. The descent is cut into the
+/// same tasks whatever the thread count, and each task gets the same share
+/// of the tests, so even a search that stops early gives the same answer
+/// on any number of threads.
+pub(crate) fn search_pairs(
+    soup: Soup,
+    threads: usize,
+    limits: PairLimits,
+) -> PairSearch<(Element, Element)> {
     let tree = Tree::new(soup, threads);
     if tree.nodes.is_empty() {
-        return Vec::new();
+        return PairSearch {
+            count: 0,
+            pairs: Vec::new(),
+            complete: true,
+        };
     }
-    let mut found = Found::default();
-    if threads <= 1 {
-        tree.descend(&mut vec![(0, 0)], &mut found);
-    } else {
-        // Breadth first, so that the tasks are of about the same depth.
-        let want = TASKS_PER_THREAD * threads;
-        let mut queue: VecDeque<(u32, u32)> = VecDeque::from([(0, 0)]);
-        let mut leaves: Vec<(u32, u32)> = Vec::new();
-        while queue.len() + leaves.len() < want {
-            let Some(task) = queue.pop_front() else { break };
-            if !tree.expand(task, &mut queue) {
-                leaves.push(task);
-            }
+    // Breadth first, so that the tasks are of about the same depth.
+    let mut queue: VecDeque<(u32, u32)> = VecDeque::from([(0, 0)]);
+    let mut leaves: Vec<(u32, u32)> = Vec::new();
+    while queue.len() + leaves.len() < TASKS {
+        let Some(task) = queue.pop_front() else { break };
+        if !tree.expand(task, &mut queue) {
+            leaves.push(task);
         }
-        let tasks: Vec<(u32, u32)> = queue.into_iter().chain(leaves).collect();
+    }
+    let tasks: Vec<(u32, u32)> = queue.into_iter().chain(leaves).collect();
+    let share = (limits.max_tests / tasks.len().max(1) as u64).max(1);
+    let run = |task: (u32, u32)| {
+        let mut found = Found::new(limits.keep, share);
+        tree.descend(&mut vec![task], &mut found);
+        found
+    };
+    let results: Vec<Found> = if threads <= 1 {
+        tasks.iter().map(|&t| run(t)).collect()
+    } else {
         let next = AtomicUsize::new(0);
         let work = || {
-            let mut found = Found::default();
-            let mut stack = Vec::new();
+            let mut mine = Vec::new();
             loop {
                 let k = next.fetch_add(1, Ordering::Relaxed);
                 let Some(&task) = tasks.get(k) else { break };
-                stack.push(task);
-                tree.descend(&mut stack, &mut found);
+                mine.push((k, run(task)));
             }
-            found
+            mine
         };
-        let sets: Vec<Found> = std::thread::scope(|scope| {
+        let mut indexed: Vec<(usize, Found)> = std::thread::scope(|scope| {
             let handles: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
-            let mut sets = vec![work()];
-            sets.extend(handles.into_iter().map(join));
-            sets
+            let mut all = work();
+            for h in handles {
+                all.extend(join(h));
+            }
+            all
         });
-        for set in sets {
-            found.extend(set);
-        }
+        indexed.sort_unstable_by_key(|(k, _)| *k);
+        indexed.into_iter().map(|(_, f)| f).collect()
+    };
+    let mut single = 0u64;
+    let mut complete = true;
+    let mut shared: FxHashSet<(Element, Element)> = FxHashSet::default();
+    let mut pairs: Vec<(Element, Element)> = Vec::new();
+    for found in results {
+        single += found.single;
+        complete &= !found.exhausted;
+        shared.extend(found.shared);
+        pairs.extend(found.smallest);
     }
-    let mut pairs: Vec<(Element, Element)> = found.into_iter().collect();
     pairs.sort_unstable();
-    pairs
+    pairs.dedup();
+    pairs.truncate(limits.keep);
+    PairSearch {
+        count: single + shared.len() as u64,
+        pairs,
+        complete,
+    }
 }
 
-/// Tasks dealt out per thread: enough that a thread finishing early finds
-/// more work.
-const TASKS_PER_THREAD: usize = 64;
+/// Tasks the descent is cut into (whatever the thread count): enough that
+/// a thread finishing early finds more work.
+const TASKS: usize = 128;
 
 // ---- the narrow phase ----
 

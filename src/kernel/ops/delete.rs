@@ -6,9 +6,9 @@
 //!   one of three [`DeleteMode`]s.
 //! - [`duplicate`] copies a selection, detached from the original, with
 //!   attributes, and returns the copies.
-//! - [`dissolve_edges`] removes edges between two faces by joining the faces
-//!   ([`Mesh::join_faces`]); [`dissolve_edges_report`] also counts the
-//!   edges it had to skip.
+//! - [`dissolve_edges`] turns every region of faces joined through selected
+//!   edges into one face (BMesh's semantics); [`dissolve_edges_report`]
+//!   also counts the edges it dissolved and skipped.
 //!
 //! Every input id is checked first: a dead id is reported as the kernel's
 //! [`KernelError::Dead`](crate::kernel::KernelError) before anything
@@ -160,15 +160,21 @@ pub struct DissolveResult {
     pub faces: Vec<FaceId>,
     /// Edges removed by joining their two faces.
     pub dissolved: usize,
-    /// Edges left alone: not exactly two distinct faces, or joining would
-    /// repeat a vertex (the faces also meet elsewhere).
+    /// Edges left alone: not between exactly two faces, or in a region
+    /// whose outline is not one simple loop.
     pub skipped: usize,
 }
 
-/// Dissolves each edge that has exactly two faces by joining them
-/// ([`Mesh::join_faces`]), in ascending id order; other edges are skipped.
-/// Returns the surviving joined faces. Vertices left with two edges stay
-/// (no vertex dissolve).
+/// Dissolves edges as BMesh's `dissolve_edges` does: the faces connected
+/// through selected edges (each between exactly two faces) form regions,
+/// and every region becomes one face bounded by the region's outline,
+/// wound like its faces and carrying the attributes of its lowest-id
+/// face. The region's inner edges go, and so do vertices left with no
+/// edge. Returns the new faces.
+///
+/// Edges not between two faces are skipped, and so is a whole region whose
+/// outline is not one simple loop (a ring of faces round a hole, or faces
+/// wound against each other): one face cannot hold it.
 pub fn dissolve_edges(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Selection, OpError> {
     let report = dissolve_edges_report(mesh, edges)?;
     Ok(Selection::from_parts(Vec::new(), Vec::new(), report.faces))
@@ -181,32 +187,117 @@ pub fn dissolve_edges_report(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Dissol
         mesh.check_edge(e)?;
     }
     let mut result = DissolveResult::default();
-    let mut joined = Vec::new();
-    for e in edges {
-        // join_faces removes only its own edge, but stay defensive.
-        if !mesh.contains_edge(e) {
-            continue;
+    // Regions: faces joined through dissolvable edges (union-find over
+    // face slots; ids ascend, so the representative is the lowest face).
+    let mut parent: Vec<u32> = (0..mesh.face_capacity() as u32).collect();
+    fn root(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            parent[x as usize] = parent[parent[x as usize] as usize];
+            x = parent[x as usize];
         }
-        if mesh.edge_face_count(e) != 2 {
+        x
+    }
+    let mut inner: Vec<EdgeId> = Vec::new();
+    for &e in &edges {
+        let faces: Vec<FaceId> = mesh.edge_faces(e).collect();
+        if faces.len() != 2 || faces[0] == faces[1] {
             result.skipped += 1;
             continue;
         }
-        // join_faces checks everything before changing anything: a refusal
-        // (same face twice, repeated vertex) leaves the mesh as it was.
-        match mesh.join_faces(e) {
-            Ok(f) => {
-                joined.push(f);
-                result.dissolved += 1;
+        inner.push(e);
+        let (a, b) = (
+            root(&mut parent, faces[0].index() as u32),
+            root(&mut parent, faces[1].index() as u32),
+        );
+        let (low, high) = (a.min(b), a.max(b));
+        parent[high as usize] = low;
+    }
+    // Faces and inner edges by region, regions by their lowest face.
+    let mut regions: Vec<(u32, Vec<FaceId>, Vec<EdgeId>)> = Vec::new();
+    for &e in &inner {
+        let f = mesh.edge_faces(e).next().expect("two faces");
+        let r = root(&mut parent, f.index() as u32);
+        let slot = match regions.binary_search_by_key(&r, |(key, ..)| *key) {
+            Ok(i) => i,
+            Err(i) => {
+                regions.insert(i, (r, Vec::new(), Vec::new()));
+                i
             }
-            Err(_) => result.skipped += 1,
+        };
+        regions[slot].2.push(e);
+    }
+    for f in mesh.face_ids() {
+        let r = root(&mut parent, f.index() as u32);
+        if let Ok(i) = regions.binary_search_by_key(&r, |(key, ..)| *key) {
+            regions[i].1.push(f);
         }
     }
-    // A face joined early may have been absorbed by a later join.
-    joined.retain(|&f| mesh.contains_face(f));
-    joined.sort_unstable();
-    joined.dedup();
-    result.faces = joined;
+    let mut made = Vec::new();
+    for (_, faces, inner) in regions {
+        // `inner` ascends: the edges were taken in canonical order.
+        let Some(outline) = outline(mesh, &faces, |e| inner.binary_search(&e).is_ok()) else {
+            result.skipped += inner.len();
+            continue;
+        };
+        let joined = mesh.make_face(&outline)?;
+        mesh.copy_face_attrs(faces[0], joined);
+        let corners: Vec<VertId> = inner.iter().flat_map(|&e| mesh.edge_verts(e)).collect();
+        for &f in &faces {
+            mesh.kill_face(f)?;
+        }
+        for &e in &inner {
+            mesh.kill_edge(e)?;
+        }
+        for v in corners {
+            if mesh.contains_vert(v) && mesh.vert_edges(v).next().is_none() {
+                mesh.kill_vert(v)?;
+            }
+        }
+        result.dissolved += inner.len();
+        made.push(joined);
+    }
+    made.sort_unstable();
+    result.faces = made;
     Ok(result)
+}
+
+/// The outline of `faces` as one vertex loop in their winding: the sides
+/// whose edge is not `inside`, chained head to tail. `None` unless they
+/// form exactly one simple loop.
+fn outline(mesh: &Mesh, faces: &[FaceId], inside: impl Fn(EdgeId) -> bool) -> Option<Vec<VertId>> {
+    // (from, to) sides, sorted by `from` for lookup.
+    let mut sides: Vec<(VertId, VertId)> = Vec::new();
+    for &f in faces {
+        let ring: Vec<VertId> = mesh.face_verts(f).collect();
+        for (k, &v) in ring.iter().enumerate() {
+            let w = ring[(k + 1) % ring.len()];
+            let e = mesh.find_edge(v, w)?;
+            if !inside(e) {
+                sides.push((v, w));
+            }
+        }
+    }
+    sides.sort_unstable();
+    if sides.len() < 3 || sides.windows(2).any(|p| p[0].0 == p[1].0) {
+        return None;
+    }
+    let next = |v: VertId| {
+        sides
+            .binary_search_by_key(&v, |&(from, _)| from)
+            .ok()
+            .map(|i| sides[i].1)
+    };
+    let start = sides[0].0;
+    let mut ring = vec![start];
+    let mut at = next(start)?;
+    while at != start {
+        if ring.len() == sides.len() {
+            return None;
+        }
+        ring.push(at);
+        at = next(at)?;
+    }
+    (ring.len() == sides.len()).then_some(ring)
 }
 
 /// The selection's lists, canonical, after checking every id is alive.
@@ -423,10 +514,11 @@ mod tests {
         m.validate().unwrap();
         assert_eq!(report.dissolved, 2);
         assert_eq!(report.skipped, 1);
-        assert_eq!(report.faces, vec![g.faces[0]]);
+        assert_eq!(report.faces.len(), 1);
+        let joined = report.faces[0];
         assert_eq!(counts(&m), (8, 8, 1));
-        assert_eq!(m.face_len(g.faces[0]), 8);
-        assert!((m.face_area(g.faces[0]) - 3.0).abs() < 1e-12);
+        assert_eq!(m.face_len(joined), 8);
+        assert!((m.face_area(joined) - 3.0).abs() < 1e-12);
 
         // Dead ids are the kernel's error.
         input.push(EdgeId::from_index(500));
@@ -437,16 +529,78 @@ mod tests {
     }
 
     #[test]
-    fn dissolving_every_edge_of_a_cube_stops_where_faces_would_repeat_a_vertex() {
+    fn dissolving_every_edge_of_a_cube_dissolves_nothing() {
+        // One region, whose outline is empty (a closed surface): no face holds it.
         let mut m = Mesh::new();
         let c = create_cube(&mut m, 1.0).unwrap();
         let report = dissolve_edges_report(&mut m, &c.edges).unwrap();
         m.validate().unwrap();
-        assert_eq!(report.dissolved + report.skipped, 12);
-        assert!(report.dissolved >= 1);
-        assert_eq!(m.edge_count(), 12 - report.dissolved);
-        assert!(report.faces.iter().all(|&f| m.contains_face(f)));
-        assert_eq!(m.face_count(), 6 - report.dissolved);
-        assert_eq!(euler_characteristic(&m), 2);
+        assert_eq!((report.dissolved, report.skipped), (0, 12));
+        assert_eq!(counts(&m), (8, 12, 6));
+    }
+
+    #[test]
+    fn a_region_of_edges_dissolves_into_one_face() {
+        // The four inner edges of a 2 × 2 grid: every pair of quads shares
+        // two of them through the centre; the old edge-by-edge dissolve
+        // left a slit. Now: one square face, the centre vertex gone.
+        let mut m = Mesh::new();
+        let g = create_grid(&mut m, 2, 2, 2.0, 2.0).unwrap();
+        m.add_layer("mat", crate::kernel::Domain::Face, AttrValue::Int(0))
+            .unwrap();
+        m.set_attr("mat", Domain::Face, g.faces[0].index(), AttrValue::Int(7));
+        let inner: Vec<EdgeId> = g
+            .edges
+            .iter()
+            .copied()
+            .filter(|&e| m.edge_face_count(e) == 2)
+            .collect();
+        assert_eq!(inner.len(), 4);
+        let report = dissolve_edges_report(&mut m, &inner).unwrap();
+        m.validate().unwrap();
+        assert_eq!((report.dissolved, report.skipped), (4, 0));
+        assert_eq!(counts(&m), (8, 8, 1));
+        let f = report.faces[0];
+        assert_eq!(m.face_len(f), 8);
+        assert!((m.face_area(f) - 4.0).abs() < 1e-12);
+        assert!(m.face_normal(f).z > 0.99, "wound like the grid");
+        assert_eq!(
+            m.attr("mat", Domain::Face, f.index()),
+            Some(AttrValue::Int(7))
+        );
+
+        // Two separate regions in one call: two faces.
+        let mut m = Mesh::new();
+        let g = create_grid(&mut m, 4, 1, 4.0, 1.0).unwrap();
+        let inner: Vec<EdgeId> = g
+            .edges
+            .iter()
+            .copied()
+            .filter(|&e| m.edge_face_count(e) == 2)
+            .collect();
+        let report = dissolve_edges_report(&mut m, &[inner[0], inner[2]]).unwrap();
+        m.validate().unwrap();
+        assert_eq!((report.dissolved, report.faces.len()), (2, 2));
+        assert_eq!(m.face_count(), 2);
+
+        // A ring of faces round a hole has two outlines: left alone.
+        let mut m = Mesh::new();
+        let g = create_grid(&mut m, 3, 3, 3.0, 3.0).unwrap();
+        let centre = g.faces[4];
+        delete(
+            &mut m,
+            &Selection::from_parts(vec![], vec![], vec![centre]),
+            DeleteMode::Faces,
+        )
+        .unwrap();
+        let ring: Vec<EdgeId> = m
+            .edge_ids()
+            .filter(|&e| m.edge_face_count(e) == 2)
+            .collect();
+        assert_eq!(ring.len(), 8);
+        let report = dissolve_edges_report(&mut m, &ring).unwrap();
+        m.validate().unwrap();
+        assert_eq!((report.dissolved, report.skipped), (0, 8));
+        assert_eq!(m.face_count(), 8);
     }
 }

@@ -1,17 +1,26 @@
 //! Skin: turns the wire edges of a mesh (a G³ skeleton) into closed tubes.
 //!
-//! Every wire edge becomes a capped frustum in a *new* mesh: its end rings
-//! are regular `sides`-gons of the end nodes' radii, perpendicular to the
-//! edge, and both ends are closed. With `joints`, every node where two or
-//! more skinned edges meet also gets a low-poly UV sphere of its radius, so
-//! bends look closed. Frusta and spheres are separate closed components that
-//! may overlap (there is no boolean union); each is wound outward, so the
-//! whole output is watertight.
+//! The skeleton is cut into *chains*: paths along which each node joins
+//! exactly two of its edges. A node of degree 2 always joins its two; at a
+//! branch node the two edges closest to a straight line continue each
+//! other and the others start (or end) there. Every chain becomes one tube
+//! in a *new* mesh: a ring of `sides` vertices per node, perpendicular to
+//! the chain (at a bend, to the bisector of its two edges, widened in the
+//! bend plane so the tube keeps its thickness), quads between consecutive
+//! rings and a cap at both ends. So a skeleton's tubes share no ring: no two
+//! output vertices coincide, and no skeleton node is left behind. With
+//! `joints`, every branch node (degree 3 or more) also gets a low-poly UV
+//! sphere of its radius, turned half a segment so its vertices miss the
+//! rings. Tubes and spheres are separate closed components that may overlap
+//! at branches (there is no boolean union: the field skin of the SDF pillar
+//! makes one solid); each is wound outward, so the whole output is
+//! watertight.
 //!
-//! Output order is deterministic: frusta in ascending edge id order, then
-//! joints in ascending vertex id order. A ring's rotation about its edge is
-//! fixed by the start node's `left` vector (or a world axis), and angles go
-//! through `libm`, so positions are bit-identical on every platform.
+//! Output order is deterministic: chains in ascending order of their lowest
+//! edge id, then joints in ascending vertex id order. A chain's first ring
+//! is turned about its edge by the start node's `left` vector (or a world
+//! axis) and later rings follow it by parallel transport; angles go through
+//! `libm`, so positions are bit-identical on every platform.
 //!
 //! ```
 //! use glam::DVec3;
@@ -103,7 +112,7 @@ pub fn skin_wire_edges(mesh: &Mesh, options: &SkinOptions) -> Result<Mesh, OpErr
         tubes.push(Tube { ends, radii });
     }
     let joints: Vec<VertId> = if options.joints {
-        mesh.vert_ids().filter(|v| degree[v.index()] >= 2).collect()
+        mesh.vert_ids().filter(|v| degree[v.index()] >= 3).collect()
     } else {
         Vec::new()
     };
@@ -122,22 +131,201 @@ pub fn skin_wire_edges(mesh: &Mesh, options: &SkinOptions) -> Result<Mesh, OpErr
     }
     let copy_radius = radius_default.is_some();
 
-    for tube in &tubes {
-        build_frustum(&mut out, mesh, tube, options.sides, copy_radius)?;
+    for chain in chains(mesh, &tubes) {
+        build_tube(&mut out, mesh, &chain, options, copy_radius)?;
     }
+    // Half a segment: a vertical tube's ring at the joint would otherwise
+    // coincide with the sphere's equator.
+    let half = std::f64::consts::PI / f64::from(options.sides);
+    let turn = glam::DQuat::from_axis_angle(DVec3::Z, half);
     for &v in &joints {
         let radius = node_radius(mesh, v, options)?;
         let sphere = create_uv_sphere(&mut out, options.sides, rings, radius)?;
         let center = mesh.position(v);
         for &w in &sphere.verts {
-            // Translation keeps the stored face normals valid.
-            out.set_position(w, out.position(w) + center);
+            out.set_position(w, turn * out.position(w) + center);
             if copy_radius {
                 set_radius(&mut out, w, radius);
             }
         }
+        // Turning moved the faces: their stored normals follow.
+        for &f in &sphere.faces {
+            out.refresh_normal(f);
+        }
     }
     Ok(out)
+}
+
+/// A path of tubes: its nodes in order (one more than its tubes).
+struct Chain {
+    nodes: Vec<VertId>,
+    radii: Vec<f64>,
+}
+
+/// Cuts the skeleton into chains (see the module doc). Deterministic: the
+/// pairing at each node depends only on positions and edge order, chains
+/// come in order of their lowest tube index, and a closed loop is cut at
+/// its lowest tube's start.
+fn chains(mesh: &Mesh, tubes: &[Tube]) -> Vec<Chain> {
+    // Tubes at each node, by tube index (ascending: edge id order).
+    let mut at: Vec<Vec<usize>> = vec![Vec::new(); mesh.vert_capacity()];
+    for (i, t) in tubes.iter().enumerate() {
+        for v in t.ends {
+            at[v.index()].push(i);
+        }
+    }
+    let away = |t: usize, v: VertId| -> DVec3 {
+        let [a, b] = tubes[t].ends;
+        let other = if a == v { b } else { a };
+        (mesh.position(other) - mesh.position(v)).normalize()
+    };
+    // partner[(t, end)] = the tube continuing tube t through its end `end`.
+    let mut partner: Vec<[Option<usize>; 2]> = vec![[None; 2]; tubes.len()];
+    for v in mesh.vert_ids() {
+        let here = &at[v.index()];
+        if here.len() < 2 {
+            continue;
+        }
+        // The most nearly opposite pair (ties: lowest indices).
+        let mut best: Option<(f64, usize, usize)> = None;
+        for (k, &t) in here.iter().enumerate() {
+            for &u in &here[k + 1..] {
+                let straightness = -away(t, v).dot(away(u, v));
+                if best.is_none_or(|(s, _, _)| straightness > s) {
+                    best = Some((straightness, t, u));
+                }
+            }
+        }
+        let (_, t, u) = best.expect("two tubes at least");
+        let end_of = |t: usize| usize::from(tubes[t].ends[1] == v);
+        partner[t][end_of(t)] = Some(u);
+        partner[u][end_of(u)] = Some(t);
+    }
+    let mut used = vec![false; tubes.len()];
+    let mut out = Vec::new();
+    for first in 0..tubes.len() {
+        if used[first] {
+            continue;
+        }
+        // Walk back to the chain's start (or once round a loop).
+        let (mut t, mut entry) = (first, 0usize);
+        loop {
+            let node = tubes[t].ends[entry];
+            match partner[t][entry] {
+                Some(prev) if prev != first => {
+                    entry = 1 - usize::from(tubes[prev].ends[1] == node);
+                    t = prev;
+                }
+                _ => break,
+            }
+        }
+        // Walk forward from (t, entry), marking tubes.
+        let start = tubes[t].ends[entry];
+        let mut nodes = vec![start];
+        let mut radii = vec![tubes[t].radii[entry]];
+        loop {
+            used[t] = true;
+            let exit = 1 - entry;
+            nodes.push(tubes[t].ends[exit]);
+            radii.push(tubes[t].radii[exit]);
+            match partner[t][exit] {
+                Some(next) if !used[next] => {
+                    let node = tubes[t].ends[exit];
+                    entry = usize::from(tubes[next].ends[1] == node);
+                    t = next;
+                }
+                _ => break,
+            }
+        }
+        out.push(Chain { nodes, radii });
+    }
+    out
+}
+
+/// One closed tube along `chain`: a ring per node, quads between rings, a
+/// cap at each end.
+fn build_tube(
+    out: &mut Mesh,
+    mesh: &Mesh,
+    chain: &Chain,
+    options: &SkinOptions,
+    copy_radius: bool,
+) -> Result<(), OpError> {
+    let points: Vec<DVec3> = chain.nodes.iter().map(|&v| mesh.position(v)).collect();
+    let k = points.len() - 1;
+    let directions: Vec<DVec3> = points
+        .windows(2)
+        .map(|w| (w[1] - w[0]).normalize())
+        .collect();
+    let sides = options.sides;
+    let mut u = reference_perpendicular(mesh, [chain.nodes[0], chain.nodes[1]], directions[0]);
+    let mut rings: Vec<Vec<VertId>> = Vec::with_capacity(k + 1);
+    for i in 0..=k {
+        let (before, after) = (directions[i.saturating_sub(1)], directions[i.min(k - 1)]);
+        let bisector = before + after;
+        // A reversal has no bisector: the ring then faces the next edge.
+        let normal = if bisector.length() > 1e-9 {
+            bisector.normalize()
+        } else {
+            after
+        };
+        // Parallel transport keeps the rings from twisting along the chain.
+        let projected = u - normal * u.dot(normal);
+        u = if projected.length() > 1e-9 {
+            projected.normalize()
+        } else {
+            reference_perpendicular(
+                mesh,
+                [chain.nodes[i.min(k - 1)], chain.nodes[i.min(k - 1) + 1]],
+                normal,
+            )
+        };
+        let v = normal.cross(u);
+        // At a bend the ring is cut obliquely through the tube: widen it in
+        // the bend plane by 1 / cos(half the bend), at most twice.
+        let bend = after - before;
+        let in_plane = bend - normal * bend.dot(normal);
+        let (widen_dir, widen) = if in_plane.length() > 1e-9 {
+            let cos_half = normal.dot(after).clamp(0.5, 1.0);
+            (in_plane.normalize(), 1.0 / cos_half)
+        } else {
+            (DVec3::ZERO, 1.0)
+        };
+        let (center, radius) = (points[i], chain.radii[i]);
+        let ring: Vec<VertId> = (0..sides)
+            .map(|j| {
+                let (c, s) = if j == 0 {
+                    (1.0, 0.0)
+                } else {
+                    let angle = std::f64::consts::TAU * f64::from(j) / f64::from(sides);
+                    (libm::cos(angle), libm::sin(angle))
+                };
+                let mut offset = u * (radius * c) + v * (radius * s);
+                offset += widen_dir * (offset.dot(widen_dir) * (widen - 1.0));
+                let w = out.make_vert(center + offset);
+                if copy_radius {
+                    set_radius(out, w, radius);
+                }
+                w
+            })
+            .collect();
+        rings.push(ring);
+    }
+    // (u, v, normal) is right-handed, so rings run counter-clockwise seen
+    // from ahead along the chain: the winding create_cylinder uses along +Z.
+    let n = sides as usize;
+    for pair in rings.windows(2) {
+        let (bottom, top) = (&pair[0], &pair[1]);
+        for j in 0..n {
+            let next = (j + 1) % n;
+            out.make_face(&[bottom[j], bottom[next], top[next], top[j]])?;
+        }
+    }
+    // Seen from outside the start end, its ring runs the other way.
+    let start_cap: Vec<VertId> = rings[0].iter().rev().copied().collect();
+    out.make_face(&start_cap)?;
+    out.make_face(&rings[k])?;
+    Ok(())
 }
 
 /// The checked radius of node `v`.
@@ -178,51 +366,6 @@ fn check_budget(tubes: usize, joints: usize, sides: u32, rings: u32) -> Result<(
             "the tubes would exceed the 2^32 element limit",
         ));
     }
-    Ok(())
-}
-
-/// One capped frustum from `tube.ends[0]` to `tube.ends[1]`.
-fn build_frustum(
-    out: &mut Mesh,
-    mesh: &Mesh,
-    tube: &Tube,
-    sides: u32,
-    copy_radius: bool,
-) -> Result<(), OpError> {
-    let [a, b] = tube.ends.map(|v| mesh.position(v));
-    let axis = (b - a).normalize();
-    let u = reference_perpendicular(mesh, tube.ends, axis);
-    // (u, v, axis) is right-handed, so rings run counter-clockwise seen from
-    // the end node `b`: the winding create_cylinder uses along +Z.
-    let v = axis.cross(u);
-    let mut ring = |center: DVec3, radius: f64| -> Vec<VertId> {
-        (0..sides)
-            .map(|i| {
-                let (c, s) = if i == 0 {
-                    (1.0, 0.0)
-                } else {
-                    let angle = std::f64::consts::TAU * f64::from(i) / f64::from(sides);
-                    (libm::cos(angle), libm::sin(angle))
-                };
-                let w = out.make_vert(center + u * (radius * c) + v * (radius * s));
-                if copy_radius {
-                    set_radius(out, w, radius);
-                }
-                w
-            })
-            .collect()
-    };
-    let bottom = ring(a, tube.radii[0]);
-    let top = ring(b, tube.radii[1]);
-    let n = bottom.len();
-    for j in 0..n {
-        let k = (j + 1) % n;
-        out.make_face(&[bottom[j], bottom[k], top[k], top[j]])?;
-    }
-    // Seen from outside the start end, its ring runs the other way.
-    let start_cap: Vec<VertId> = bottom.iter().rev().copied().collect();
-    out.make_face(&start_cap)?;
-    out.make_face(&top)?;
     Ok(())
 }
 
@@ -358,18 +501,23 @@ mod tests {
         let out = skin_wire_edges(&m, &options(8)).unwrap();
         out.validate().unwrap();
         let r = out.report();
-        // Three frusta and one sphere at the fork; overlapping but each closed.
-        assert_eq!(r.components, 4);
+        // The trunk continues into the straighter branch (one tube of three
+        // rings), the other branch is a tube of its own, and the fork gets
+        // a sphere; overlapping but each closed.
+        assert_eq!(r.components, 3);
         assert!(r.watertight && r.manifold && r.wire_edges == 0, "{r:?}");
-        assert_eq!(r.euler_characteristic, 2 * 4);
+        assert_eq!(r.euler_characteristic, 2 * 3);
         assert!(r.volume.unwrap() > 0.0);
         let sphere_verts = 8 * 3 + 2;
-        assert_eq!(r.verts, 3 * 16 + sphere_verts);
+        assert_eq!(r.verts, 3 * 8 + 2 * 8 + sphere_verts);
         // The sphere is the last component: centred on the fork, its radius.
-        let last: Vec<VertId> = out.vert_ids().skip(3 * 16).collect();
+        let last: Vec<VertId> = out.vert_ids().skip(5 * 8).collect();
         for &w in &last {
             assert!(((out.position(w) - DVec3::Z).length() - 0.2).abs() < 1e-12);
         }
+        // No two output vertices coincide: rings are not repeated where
+        // tubes meet, and the sphere is turned off the rings.
+        assert!(crate::kernel::intersect::close_vertices(&out, 1e-9).is_empty());
 
         let without = skin_wire_edges(
             &m,
@@ -380,7 +528,46 @@ mod tests {
         )
         .unwrap();
         without.validate().unwrap();
-        assert_eq!(without.report().components, 3);
+        assert_eq!(without.report().components, 2);
+    }
+
+    #[test]
+    fn a_straight_chain_is_one_tube_with_one_ring_per_node() {
+        // A vertical chain of four nodes, each joining two edges: the old
+        // skin made three frusta with coincident end rings and spheres whose
+        // equators lay on them.
+        let points: Vec<DVec3> = (0..4).map(|k| DVec3::new(0.0, 0.0, f64::from(k))).collect();
+        let m = skeleton(&points, &[(0, 1), (1, 2), (2, 3)], Some(&[0.2; 4]));
+        let out = skin_wire_edges(&m, &options(8)).unwrap();
+        out.validate().unwrap();
+        let r = out.report();
+        assert_eq!((r.verts, r.faces, r.components), (32, 3 * 8 + 2, 1));
+        assert!(r.watertight && r.manifold);
+        assert!(crate::kernel::intersect::close_vertices(&out, 1e-9).is_empty());
+        // A bent chain keeps its thickness at the bend: the ring there is
+        // widened by 1 / cos(45°) in the bend plane.
+        let bent = skeleton(
+            &[DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0)],
+            &[(0, 1), (1, 2)],
+            Some(&[0.1; 3]),
+        );
+        let out = skin_wire_edges(&bent, &options(4)).unwrap();
+        out.validate().unwrap();
+        assert!(out.report().watertight);
+        let middle: Vec<DVec3> = out
+            .vert_ids()
+            .skip(4)
+            .take(4)
+            .map(|v| out.position(v))
+            .collect();
+        let widest = middle
+            .iter()
+            .map(|p| (*p - DVec3::X).length())
+            .fold(0.0, f64::max);
+        assert!(
+            (widest - 0.1 * std::f64::consts::SQRT_2).abs() < 1e-12,
+            "{widest}"
+        );
     }
 
     #[test]
