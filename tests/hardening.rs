@@ -675,6 +675,30 @@ fn gltf_is_y_up_and_round_trips_exactly() {
 }
 
 #[test]
+fn gltfpack_output_reads() {
+    // `gltfpack -i chair.glb -o chair-gltfpack.glb` (npm gltfpack, its
+    // defaults): KHR_mesh_quantization, 16-bit positions, a node transform.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let o = graftal_in(
+        root,
+        &["info", "fixtures/clients/chair-gltfpack.glb", "--json"],
+    );
+    assert_clean_exit(&o, 0);
+    let info: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(info["vertices"], 56);
+    assert_eq!(info["watertight"], true);
+    // The chair's volume, 0.46209 unquantized, within 16-bit steps.
+    assert!(
+        (info["volume"].as_f64().unwrap() - 0.462_094).abs() < 1e-3,
+        "{info}"
+    );
+    // Z-up again: the chair stands 2.19 high along z.
+    let bounds = &info["bounds"];
+    let height = bounds[1][2].as_f64().unwrap() - bounds[0][2].as_f64().unwrap();
+    assert!((height - 2.19).abs() < 1e-2, "{bounds}");
+}
+
+#[test]
 fn stl_says_when_it_drops_wire_edges() {
     let d = dir();
     file(

@@ -1235,13 +1235,24 @@ impl Runner<'_> {
                 *caps,
             )
             .map_err(e)?,
-            Op::Import { resource } => {
+            Op::Import {
+                resource,
+                weld,
+                y_up,
+            } => {
                 let source = &self.program.resources[*resource];
-                let indexed = self
+                let loaded = self
                     .inputs
                     .get(*resource)
                     .ok_or_else(|| format!("`{}` was not loaded before the run", source.written))?;
-                let other = io::bridge::mesh_from_indexed(indexed)
+                let mut indexed = match weld {
+                    Some(distance) => std::borrow::Cow::Owned(loaded.welded(*distance)),
+                    None => std::borrow::Cow::Borrowed(&**loaded),
+                };
+                if *y_up {
+                    indexed.to_mut().y_up_to_z_up();
+                }
+                let other = io::bridge::mesh_from_indexed(&indexed)
                     .map_err(|err| format!("{}: {err}", source.written))?;
                 let map = mesh.join_mesh(&other);
                 Selection::from_parts(

@@ -1632,6 +1632,45 @@ mod tests {
     }
 
     #[test]
+    fn quantized_positions_are_read() {
+        // KHR_mesh_quantization as gltfpack writes it: normalized SHORT
+        // positions with a stride of 8, scaled back by the node.
+        let shorts: [i16; 12] = [0, 0, 0, 0, 32767, 0, 0, 0, 0, 32767, 0, 0];
+        let bytes: &[u8] = bytemuck::cast_slice(&shorts);
+        let mut uri = DATA_URI_PREFIX.as_bytes().to_vec();
+        base64_encode(bytes, &mut uri);
+        let doc = |component: u32, normalized: bool, required: &[&str]| {
+            serde_json::to_vec(&serde_json::json!({
+                "asset": {"version": "2.0"},
+                "extensionsUsed": ["KHR_mesh_quantization"],
+                "extensionsRequired": required,
+                "buffers": [{"byteLength": 24, "uri": String::from_utf8(uri.clone()).unwrap()}],
+                "bufferViews": [{"buffer": 0, "byteLength": 24, "byteStride": 8}],
+                "accessors": [{"bufferView": 0, "count": 3, "componentType": component,
+                               "normalized": normalized, "type": "VEC3"}],
+                "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                "nodes": [{"mesh": 0, "scale": [2, 2, 2]}],
+            }))
+            .unwrap()
+        };
+        let m = decode(&doc(5122, true, &["KHR_mesh_quantization"]), p()).unwrap();
+        // glTF (2, 0, 0) and (0, 2, 0) are the kernel's (2, 0, 0) and (0, 0, 2).
+        assert_eq!(
+            m.positions,
+            [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 2.0]]
+        );
+        // Not normalized: the integers themselves.
+        let m = decode(&doc(5122, false, &[]), p()).unwrap();
+        assert_eq!(m.positions[1], [65534.0, 0.0, 0.0]);
+        // Normalized UNSIGNED_SHORT: 32767 / 65535.
+        let m = decode(&doc(5123, true, &[]), p()).unwrap();
+        assert_eq!(m.positions[1][0], 2.0 * f64::from(32767.0f32 / 65535.0));
+        // Other required extensions are still refused.
+        let e = decode(&doc(5122, true, &["KHR_draco_mesh_compression"]), p()).unwrap_err();
+        assert!(e.to_string().contains("KHR_draco_mesh_compression"), "{e}");
+    }
+
+    #[test]
     fn strips_fans_and_loops() {
         let read = |mode| decode(&square_gltf(mode, serde_json::json!({})), p()).unwrap();
         let strip = read(5);

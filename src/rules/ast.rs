@@ -641,8 +641,12 @@ pub struct ConeOp {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImportOp {
-    /// Mesh file (OBJ, STL, glTF, GLB), relative to the rule file.
+    /// Mesh file (OBJ, STL, PLY, glTF, GLB), relative to the rule file.
     pub path: Spanned<String>,
+    /// Merge vertices at most this far apart (0: identical positions).
+    pub weld: Option<Spanned<f64>>,
+    /// The file's up axis (OBJ, PLY and STL; glTF is always Y-up).
+    pub up: Option<AxisName>,
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]

@@ -1881,12 +1881,30 @@ fn compile_op(
                 }
                 None => c.file.name.clone(),
             };
+            let weld = match &o.weld {
+                Some(w) if !(w.value.is_finite() && w.value >= 0.0) => {
+                    return Err(c.error(
+                        w.span.clone(),
+                        format!("`weld` is a distance ≥ 0, got {}", w.value),
+                    ))
+                }
+                w => w.as_ref().map(|w| w.value),
+            };
+            let y_up = match o.up {
+                None | Some(ast::AxisName::Z) => false,
+                Some(ast::AxisName::Y) => true,
+                Some(ast::AxisName::X) => {
+                    return Err(c.error(span.clone(), "`up` of an import is \"y\" or \"z\""))
+                }
+            };
             Op::Import {
                 resource: c.resource(Resource {
                     path,
                     written: o.path.value.clone(),
                     location,
                 }),
+                weld,
+                y_up,
             }
         }
         Operation::Translate(o) => Op::Translate {

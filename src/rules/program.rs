@@ -321,6 +321,10 @@ pub enum Op {
     /// Appends the mesh of [`Program::resources`]`[resource]`.
     Import {
         resource: usize,
+        /// Merge vertices this close first.
+        weld: Option<f64>,
+        /// The file is Y-up: turn it into the Z-up kernel.
+        y_up: bool,
     },
     Translate {
         offset: Vector,

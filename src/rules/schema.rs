@@ -203,11 +203,22 @@ fn operator(name: &str) -> Value {
             &[],
         ),
         "import" => object(
-            vec![(
-                "path",
-                json!({ "type": "string", "minLength": 1,
-                        "description": "OBJ, STL, glTF or GLB file, relative to the rule file" }),
-            )],
+            vec![
+                (
+                    "path",
+                    json!({ "type": "string", "minLength": 1,
+                            "description": "OBJ, STL, PLY, glTF or GLB file, relative to the rule file" }),
+                ),
+                (
+                    "weld",
+                    json!({ "type": "number", "minimum": 0,
+                            "description": "merge vertices at most this far apart (0: identical positions)" }),
+                ),
+                (
+                    "up",
+                    json!({ "enum": ["y", "z"], "description": "the file's up axis (OBJ, PLY, STL)" }),
+                ),
+            ],
             &["path"],
         ),
         "translate" => object(vec![("offset", vector("displacement"))], &["offset"]),
