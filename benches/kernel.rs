@@ -12,7 +12,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::DVec3;
 
-use graftal::io::{self, bridge, MeshFormat};
+use graftal::io::{self, MeshFormat};
 use graftal::kernel::ops::{create, extrude, faces, merge};
 use graftal::kernel::{Mesh, VertId};
 
@@ -141,7 +141,7 @@ fn bench_glb(c: &mut Criterion) {
     g.sample_size(10);
     for n in [250u32, 708] {
         // 2·n² triangles: 708² · 2 ≈ 1.0M.
-        let indexed = bridge::mesh_to_indexed(&grid(n));
+        let indexed = grid(n).to_indexed();
         g.bench_function(format!("{}_triangles", 2 * n * n), |b| {
             b.iter(|| black_box(io::encode(&indexed, MeshFormat::Glb).unwrap()))
         });

@@ -5,6 +5,7 @@
 //! [`cli`] is the command line over all of them. See ARCHITECTURE.md.
 
 pub mod cli;
+pub mod geom;
 pub mod grammar;
 pub mod io;
 pub mod kernel;

@@ -66,7 +66,7 @@ fn every_example_runs_and_is_closed_and_valid() {
         }
         // The written file reads back into a valid kernel mesh with the same counts.
         let indexed = common::read_mesh(&out);
-        let back = graftal::io::bridge::mesh_from_indexed(&indexed).unwrap();
+        let (back, _) = graftal::kernel::build::mesh_from_indexed(&indexed).unwrap();
         back.validate().unwrap();
         assert_eq!(
             back.face_count() as u64,

@@ -7,7 +7,6 @@ use common::{assert_rejected, grow, run_validated, step, toml};
 
 use glam::DVec3;
 use graftal::grammar::{run, RunErrorKind, RunOptions, RunOutput};
-use graftal::io::bridge::mesh_to_indexed;
 use graftal::kernel::{Mesh, VertId};
 use graftal::rules::Program;
 
@@ -277,7 +276,7 @@ fn same_seed_same_bytes_and_streams_are_independent() {
                 ..RunOptions::default()
             },
         );
-        graftal::io::encode(&mesh_to_indexed(&out.mesh), graftal::io::MeshFormat::Glb).unwrap()
+        graftal::io::encode(&out.mesh.to_indexed(), graftal::io::MeshFormat::Glb).unwrap()
     };
     assert_eq!(bytes(&p, 5), bytes(&p, 5));
     assert_ne!(bytes(&p, 5), bytes(&p, 6));

@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use graftal::grammar::{run, RunOptions};
-use graftal::io::bridge::mesh_to_indexed;
 use graftal::rules::compile::{compile, parse};
 use graftal::rules::diagnostic::SourceFile;
 use graftal::rules::spanned::SourceFormat;
@@ -79,7 +78,7 @@ extrude_faces = { offset = [0, 0, "h"] }
     let a = run(&t, &RunOptions::default()).unwrap();
     let b = run(&r, &RunOptions::default()).unwrap();
     assert_eq!(a.seed, 4);
-    assert_eq!(mesh_to_indexed(&a.mesh), mesh_to_indexed(&b.mesh));
+    assert_eq!(a.mesh.to_indexed(), b.mesh.to_indexed());
     assert_eq!(a.params, b.params);
     assert_eq!(
         a.steps.last().unwrap().matched,

@@ -24,7 +24,7 @@ use super::manifest::{
 use super::stats::{self, steps_json};
 use super::{output_format, Failure, EXIT_RUNTIME};
 use crate::grammar::{self, RunErrorKind, RunOptions};
-use crate::io::{self, bridge};
+use crate::io;
 use crate::rules::{self, Override, Program};
 
 /// More variants than this in one batch is surely a typo'd range.
@@ -993,7 +993,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
             return fail(entry, kind, super::run_exit_code(e.kind), e.to_string());
         }
     };
-    let indexed = bridge::mesh_to_indexed(&result.mesh);
+    let indexed = result.mesh.to_indexed();
     let encoded = match super::encode_for(&indexed, v.format, &args.write, &v.output) {
         Ok(encoded) => encoded,
         Err(m) => return fail(entry, "failed", EXIT_RUNTIME, m),

@@ -18,7 +18,8 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use crate::grammar;
-use crate::io::{self, bridge};
+use crate::io;
+use crate::kernel::build::mesh_from_indexed;
 use crate::rules::{self, Override, RuleError};
 
 /// Exit status for a failure at run time.
@@ -373,7 +374,7 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             input,
         } => {
             let indexed = input.read_mesh(&mesh)?;
-            let (kernel_mesh, import) = bridge::mesh_from_indexed_report(&indexed)
+            let (kernel_mesh, import) = mesh_from_indexed(&indexed)
                 .map_err(|e| Failure::Input(format!("{}: {e}", mesh.display())))?;
             let report = kernel_mesh.report();
             let gates = stats::gates(&kernel_mesh, tolerance);

@@ -7,7 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::grammar::{RunOutput, StepStats};
-use crate::io::bridge::ImportReport;
+use crate::kernel::build::ImportReport;
 use glam::DVec3;
 
 use crate::kernel::intersect::{

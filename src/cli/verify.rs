@@ -15,7 +15,7 @@ use serde_json::Value;
 use super::batch::SeedSet;
 use super::{stats, Failure, EXIT_RUNTIME};
 use crate::grammar::{self, RunOptions};
-use crate::io::{self, bridge, IndexedMesh};
+use crate::io::{self, IndexedMesh};
 use crate::rules::{self, Override};
 
 /// Stats fields that name the tool or the invocation rather than the
@@ -191,7 +191,7 @@ fn regenerate(
     ))
     .expect("stats serialize");
     stats.push('\n');
-    let obj = io::encode(&bridge::mesh_to_indexed(&result.mesh), io::MeshFormat::Obj)
+    let obj = io::encode(&result.mesh.to_indexed(), io::MeshFormat::Obj)
         .map_err(|e| Failure::Runtime(format!("{stem}: {e}")))?;
     Ok(Fresh { stem, stats, obj })
 }

@@ -44,13 +44,6 @@ impl Context<'_> {
     }
 }
 
-/// Average of the unit normals of the faces around `v`, normalized
-/// (zero when it has no faces or they cancel).
-pub fn vertex_normal(mesh: &Mesh, v: VertId) -> DVec3 {
-    let sum: DVec3 = mesh.vert_faces(v).map(|f| mesh.face_normal(f)).sum();
-    sum.try_normalize().unwrap_or(DVec3::ZERO)
-}
-
 fn bounds(points: impl Iterator<Item = DVec3>) -> (DVec3, DVec3) {
     points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
         (lo.min(p), hi.max(p))
@@ -80,7 +73,7 @@ pub fn property(ctx: &Context, domain: Domain, index: usize, property: Property)
             match property {
                 Position(i) => mesh.position(v)[i],
                 Relative(i) => ctx.measure().relative(mesh.position(v))[i],
-                Normal(i) => vertex_normal(mesh, v)[i],
+                Normal(i) => mesh.vert_normal(v)[i],
                 Degree => ctx.count_edges(mesh.vert_edges(v)),
                 FaceCount => ctx.count_faces(mesh.vert_faces(v)),
                 OutEdges => ctx.count_edges(directed_edges(mesh, v, 0)),

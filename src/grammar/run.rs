@@ -13,7 +13,7 @@ use thiserror::Error;
 
 use super::intersect::Guard;
 use super::merge::Merger;
-use crate::io::{self, IndexedMesh};
+use crate::geom::IndexedMesh;
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
@@ -1252,14 +1252,9 @@ impl Runner<'_> {
                 if *y_up {
                     indexed.to_mut().y_up_to_z_up();
                 }
-                let other = io::bridge::mesh_from_indexed(&indexed)
-                    .map_err(|err| format!("{}: {err}", source.written))?;
-                let map = mesh.join_mesh(&other);
-                Selection::from_parts(
-                    map.verts.into_iter().flatten().collect(),
-                    map.edges.into_iter().flatten().collect(),
-                    map.faces.into_iter().flatten().collect(),
-                )
+                // Built straight into the working mesh: no copy.
+                crate::kernel::build::append_indexed(mesh, &indexed)
+                    .map_err(|err| format!("{}: {err}", source.written))?
             }
             Op::Translate { offset } => {
                 let vs = verts();

@@ -10,7 +10,7 @@
 //! * Surface primitive (mode TRIANGLES, only if there are polygons): flat shaded. Each polygon's
 //!   vertices are duplicated and carry the polygon's unit Newell normal (`(0, 0, 1)` for
 //!   degenerate polygons), renormalized in `f32`; the polygon is split with
-//!   [`crate::kernel::polygon::triangulate`].
+//!   [`crate::geom::polygon::triangulate`].
 //! * Wire primitive (mode LINES, only if there are lines): its own vertices, the ones the lines
 //!   use, numbered in first-use order.
 //! * Attributes: `POSITION` (f32, `min`/`max` from the written `f32` values), `NORMAL` (surface
@@ -47,8 +47,8 @@ use std::path::Path;
 use ::gltf::json::{self, validation::Checked, validation::USize64, Index};
 use glam::DVec3;
 
-use super::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
 use super::IoError;
+use crate::geom::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
 
 const DATA_URI_PREFIX: &str = "data:application/octet-stream;base64,";
 

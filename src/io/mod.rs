@@ -20,9 +20,7 @@
 //! the files (atomically, all outputs of a run or none), and a `.gltf`'s
 //! external buffers come through a [`Resolve`] callback it supplies.
 
-pub mod bridge;
 pub mod gltf;
-pub mod indexed;
 pub mod obj;
 pub mod ply;
 pub mod stl;
@@ -30,7 +28,7 @@ pub mod stl;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-pub use indexed::IndexedMesh;
+pub use crate::geom::indexed::{IndexedMesh, MeshError, UpAxis};
 
 /// Supplies a file a mesh file refers to (a `.gltf`'s external buffer):
 /// given its URI as written (percent-decoded, relative to the mesh file)
@@ -103,6 +101,27 @@ pub enum IoError {
     /// A mesh to be written is structurally invalid or exceeds a format limit.
     #[error("cannot write mesh: {message}")]
     InvalidMesh { message: String },
+}
+
+impl From<MeshError> for IoError {
+    fn from(e: MeshError) -> IoError {
+        match e {
+            MeshError::NonFinite { vertex } => IoError::NonFinite { vertex },
+            MeshError::NonFiniteScalar { name, vertex } => {
+                IoError::NonFiniteScalar { name, vertex }
+            }
+            MeshError::OutOfRange {
+                vertex,
+                value,
+                format,
+            } => IoError::OutOfRange {
+                vertex,
+                value,
+                format,
+            },
+            MeshError::Invalid { message } => IoError::InvalidMesh { message },
+        }
+    }
 }
 
 fn line_prefix(line: Option<usize>) -> String {

@@ -15,8 +15,8 @@
 
 use std::path::Path;
 
-use super::indexed::IndexedMesh;
 use super::{parse_f64, push_f64, push_u64, text_lines, IoError};
+use crate::geom::indexed::IndexedMesh;
 
 /// Encodes `mesh` as OBJ text.
 pub fn encode(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {

@@ -16,8 +16,8 @@
 
 use std::path::Path;
 
-use super::indexed::IndexedMesh;
 use super::{push_f64, push_u64, IoError};
+use crate::geom::indexed::IndexedMesh;
 
 /// PLY body encoding for writing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

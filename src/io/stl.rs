@@ -1,6 +1,6 @@
 //! STL, ASCII and binary.
 //!
-//! Writing triangulates every polygon with [`crate::kernel::polygon::triangulate`]. Each facet
+//! Writing triangulates every polygon with [`crate::geom::polygon::triangulate`]. Each facet
 //! normal is the triangle's unit normal, or the polygon's unit Newell normal when the triangle
 //! is degenerate, or `0 0 0` when both are. Wire edges and vertex scalars are not written.
 //! The binary header is `graftal binary STL` padded with spaces to 80 bytes; binary values are
@@ -16,9 +16,9 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
 use super::{parse_f64, push_f64, text_lines, IoError};
-use crate::kernel::polygon;
+use crate::geom::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
+use crate::geom::polygon;
 
 const HEADER: &[u8; 18] = b"graftal binary STL";
 

@@ -3,6 +3,8 @@
 
 use glam::DVec3;
 
+use crate::geom::UnionFind;
+
 use super::ids::{FaceId, VertId};
 use super::mesh::Mesh;
 
@@ -37,29 +39,6 @@ pub struct MeshReport {
     pub components: usize,
     /// V − E + F.
     pub euler_characteristic: i64,
-}
-
-struct UnionFind(Vec<u32>);
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        Self((0..n as u32).collect())
-    }
-    fn find(&mut self, mut i: u32) -> u32 {
-        while self.0[i as usize] != i {
-            let parent = self.0[self.0[i as usize] as usize];
-            self.0[i as usize] = parent;
-            i = parent;
-        }
-        i
-    }
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            let (lo, hi) = (ra.min(rb), ra.max(rb));
-            self.0[hi as usize] = lo;
-        }
-    }
 }
 
 impl Mesh {
@@ -110,7 +89,7 @@ impl Mesh {
         let mut triangles = 0;
         for f in self.face_ids() {
             let points = self.face_positions(f);
-            area += super::polygon::area(&points);
+            area += crate::geom::polygon::area(&points);
             triangles += points.len() - 2;
             // Divergence theorem over a fan: exact for planar faces.
             for i in 1..points.len() - 1 {

@@ -17,7 +17,7 @@ use glam::DVec3;
 use super::arena::Arena;
 use super::attrs::{AttrValue, Attributes, LayerKind};
 use super::ids::{Domain, EdgeId, FaceId, LoopId, VertId};
-use super::polygon;
+use crate::geom::polygon;
 
 #[derive(Clone, Debug)]
 pub(crate) struct Vert {
@@ -185,6 +185,24 @@ impl Mesh {
         for f in ids {
             self.refresh_normal(f);
         }
+    }
+
+    /// The normalised mean of the *stored* unit normals of the faces around
+    /// `v` (what conditions read as `normal.x`); zero when it has no faces
+    /// or they cancel.
+    pub fn vert_normal(&self, v: VertId) -> DVec3 {
+        let sum: DVec3 = self.vert_faces(v).map(|f| self.face_normal(f)).sum();
+        sum.try_normalize().unwrap_or(DVec3::ZERO)
+    }
+
+    /// The normalised mean of the face normals around `v` *recomputed from
+    /// current positions* (extrusion along normals must not trust a stored
+    /// normal a transform left stale); zero without faces or if they cancel.
+    pub fn vert_normal_from_positions(&self, v: VertId) -> DVec3 {
+        self.vert_faces(v)
+            .map(|f| self.compute_face_normal(f))
+            .sum::<DVec3>()
+            .normalize_or_zero()
     }
 
     /// Unit Newell normal from current positions; zero when degenerate.

@@ -7,22 +7,25 @@
 //! - [`attrs`] holds named per-element attribute layers.
 //! - [`ops`] holds the high-level modelling operators built on Euler
 //!   operators, each returning a typed result naming what it made.
-//! - [`polygon`] holds pure polygon geometry (normals, triangulation).
+//! - [`build`] is the kernel's [`MeshSink`](crate::geom::MeshSink): emitted
+//!   geometry becomes kernel elements, and [`Mesh::emit`] hands a mesh to
+//!   any sink (the writers' [`IndexedMesh`](crate::geom::IndexedMesh)).
 //! - [`intersect`] holds exact intersection predicates, a BVH broad phase,
 //!   self-intersection, an incremental index for growth tests and
 //!   close-vertex detection.
 //!
-//! The kernel knows nothing of rule files, grammars or file formats.
+//! The kernel uses only the geometry floor ([`crate::geom`]); it knows
+//! nothing of rule files, grammars or file formats.
 
 mod arena;
 pub mod attrs;
+pub mod build;
 pub mod euler;
 pub mod ids;
 pub mod intersect;
 pub mod measure;
 pub mod mesh;
 pub mod ops;
-pub mod polygon;
 pub mod validate;
 
 pub use attrs::{AttrValue, LayerKind};

@@ -2032,30 +2032,10 @@ fn closest(word: &str) -> Option<&'static str> {
     closest_in(word, &keys).map(|i| keys[i])
 }
 
-/// Index of the candidate nearest to `word` by edit distance, if close
-/// enough to be a typo (at most 2 edits, more for long words).
+/// Index of the candidate nearest to `word`, if close enough to be a typo
+/// ([`crate::geom::names::closest`]).
 pub(crate) fn closest_in<S: AsRef<str>>(word: &str, candidates: &[S]) -> Option<usize> {
-    fn distance(a: &str, b: &str) -> usize {
-        let b: Vec<char> = b.chars().collect();
-        let mut row: Vec<usize> = (0..=b.len()).collect();
-        for (i, ca) in a.chars().enumerate() {
-            let mut previous = row[0];
-            row[0] = i + 1;
-            for (j, &cb) in b.iter().enumerate() {
-                let substitute = previous + usize::from(ca != cb);
-                previous = row[j + 1];
-                row[j + 1] = substitute.min(row[j] + 1).min(row[j + 1] + 1);
-            }
-        }
-        row[b.len()]
-    }
-    candidates
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (distance(word, c.as_ref()), i))
-        .filter(|&(d, i)| d > 0 && d <= 2.max(candidates[i].as_ref().len() / 4))
-        .min()
-        .map(|(_, i)| i)
+    crate::geom::names::closest(word, candidates)
 }
 
 /// A "did you mean" hint for an unknown name in an expression.

@@ -1456,48 +1456,19 @@ fn to_bool(code: Code) -> Code {
     }
 }
 
-/// Up to three candidates within a small edit distance of `name`, closest first.
+/// Up to three candidates close to `name`, closest first
+/// ([`crate::geom::names::suggestions`]).
 fn close_matches<'a>(name: &str, candidates: &[&'a str]) -> Vec<&'a str> {
-    let limit = (name.len() / 3).max(1);
-    let mut scored: Vec<(usize, &str)> = candidates
-        .iter()
-        // The length check keeps a huge hostile name from costing a huge distance table.
-        .filter(|candidate| **candidate != name && candidate.len().abs_diff(name.len()) <= limit)
-        .map(|candidate| (edit_distance(name, candidate), *candidate))
-        .filter(|(distance, _)| *distance <= limit)
-        .collect();
-    scored.sort_unstable();
-    scored.dedup();
-    scored
-        .into_iter()
-        .take(3)
-        .map(|(_, candidate)| candidate)
-        .collect()
-}
-
-/// Optimal-string-alignment distance over bytes (names are ASCII): Levenshtein plus
-/// adjacent transpositions, so `widht` is one edit from `width`.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let (a, b) = (a.as_bytes(), b.as_bytes());
-    // Rows of the distance table for prefixes of `a` of length i - 1, i and i + 1.
-    let mut before = vec![0; b.len() + 1];
-    let mut previous: Vec<usize> = (0..=b.len()).collect();
-    let mut current = vec![0; b.len() + 1];
-    for (i, &a_byte) in a.iter().enumerate() {
-        current[0] = i + 1;
-        for (j, &b_byte) in b.iter().enumerate() {
-            let mut best = (previous[j] + usize::from(a_byte != b_byte))
-                .min(previous[j + 1] + 1)
-                .min(current[j] + 1);
-            if i > 0 && j > 0 && a_byte == b[j - 1] && a[i - 1] == b_byte {
-                best = best.min(before[j - 1] + 1);
-            }
-            current[j + 1] = best;
+    let mut out: Vec<&str> = Vec::with_capacity(3);
+    for i in crate::geom::names::suggestions(name, candidates) {
+        if out.len() == 3 {
+            break;
         }
-        std::mem::swap(&mut before, &mut previous);
-        std::mem::swap(&mut previous, &mut current);
+        if !out.contains(&candidates[i]) {
+            out.push(candidates[i]);
+        }
     }
-    previous[b.len()]
+    out
 }
 
 #[cfg(test)]

@@ -27,6 +27,7 @@ use std::collections::BTreeSet;
 use std::ops::Range as Span;
 use std::path::Path;
 
+use crate::geom::interval::{next_down, next_up, Interval};
 use crate::kernel::Domain;
 
 use super::ast::{self, Operation, ParamSpec, RuleFile, Scalar, VectorSpec};
@@ -678,7 +679,7 @@ impl<'a> Linter<'a> {
     fn conditions(&self, sites: &[Site], program: &Program, out: &mut Vec<Finding>) {
         let base = self.params.len();
         // Parameters in conditions: any finite number (`--set` may change them).
-        let mut any_params = vec![Range::finite(); base + PROPERTY_SLOTS];
+        let mut any_params = vec![Interval::finite(); base + PROPERTY_SLOTS];
         let mut integer = vec![false; base + PROPERTY_SLOTS];
         for k in 0..PROPERTY_SLOTS {
             let (range, int) = property_range(property_from_index(k as u32));
@@ -785,12 +786,12 @@ fn name_offset(text: &str, name: &str) -> Option<usize> {
 
 /// "ranges assumed: normal.z in [-1, 1], …" for the properties an
 /// expression reads.
-fn used_ranges(expr: &Expr, base: usize, ranges: &[Range], integer: &[bool]) -> Option<String> {
+fn used_ranges(expr: &Expr, base: usize, ranges: &[Interval], integer: &[bool]) -> Option<String> {
     let parts: Vec<String> = expr
         .used_slots()
         .iter()
         .filter(|&&s| (s as usize) >= base && (s as usize) < ranges.len())
-        .filter(|&&s| ranges[s as usize] != Range::finite())
+        .filter(|&&s| ranges[s as usize] != Interval::finite())
         .map(|&s| {
             let p = property_from_index(s - base as u32);
             let name = property_name(p);
@@ -841,222 +842,71 @@ fn property_name(p: Property) -> String {
 }
 
 /// The values a property can take, and whether it is an integer.
-fn property_range(p: Property) -> (Range, bool) {
+fn property_range(p: Property) -> (Interval, bool) {
     use Property::*;
-    let nonneg = Range::new(0.0, f64::INFINITY);
+    let nonneg = Interval::new(0.0, f64::INFINITY);
     match p {
         Id | Degree | FaceCount | EdgeNeighbors | VertNeighbors | OutEdges | InEdges
         | EdgeNeighborEdges | Age => (nonneg, true),
-        Sides => (Range::new(3.0, f64::INFINITY), true),
-        Generation => (Range::new(1.0, f64::INFINITY), true),
-        Random => (Range::new(0.0, next_down(1.0)), false),
+        Sides => (Interval::new(3.0, f64::INFINITY), true),
+        Generation => (Interval::new(1.0, f64::INFINITY), true),
+        Random => (Interval::new(0.0, next_down(1.0)), false),
         Length | Area | PreLength | RelativeLength | RelativeArea => (nonneg, false),
-        Normal(_) | Direction(_) => (Range::new(-1.0, 1.0), false),
-        _ => (Range::finite(), false),
+        Normal(_) | Direction(_) => (Interval::new(-1.0, 1.0), false),
+        _ => (Interval::finite(), false),
     }
 }
 
 /// The values a parameter's definition allows (overrides included).
-fn param_range(a: &Analysis, p: &super::program::Param, env: &[Range]) -> Range {
+fn param_range(a: &Analysis, p: &super::program::Param, env: &[Interval]) -> Interval {
     let e = |x: &Expr| a.eval(&x.tree(), env);
     let r = match &p.kind {
         ParamKind::Expr(x) => e(x),
         ParamKind::Uniform { low, high } => e(low).hull(e(high)),
-        ParamKind::Normal { .. } => Range::finite(),
+        ParamKind::Normal { .. } => Interval::finite(),
         ParamKind::Int { low, high } => {
             let r = e(low).hull(e(high));
-            Range::new(libm::round(r.lo), libm::round(r.hi))
+            Interval::new(libm::round(r.lo), libm::round(r.hi))
         }
         ParamKind::Choice { values, .. } => values
             .iter()
             .map(e)
-            .reduce(Range::hull)
-            .unwrap_or(Range::finite()),
+            .reduce(Interval::hull)
+            .unwrap_or(Interval::finite()),
     };
     let r = match &p.clamp {
         Some((lo, hi)) => binary(Binary::Min, binary(Binary::Max, r, e(lo)), e(hi)),
         None => r,
     };
     // The engine stops on a non-finite parameter, so a running one is finite.
-    Range {
+    Interval {
         lo: r.lo.max(f64::MIN),
         hi: r.hi.min(f64::MAX),
         nan: false,
     }
 }
 
-// ---- interval arithmetic -------------------------------------------------------
+// ---- interval arithmetic over the expression language ---------------------------
 
-/// A set of values: the reals in [lo, hi] (empty when lo > hi), and NaN when
-/// `nan`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Range {
-    lo: f64,
-    hi: f64,
-    nan: bool,
-}
-
-impl std::fmt::Display for Range {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let bound = |x: f64| {
-            if x == f64::INFINITY {
-                "∞".to_owned()
-            } else if x == f64::NEG_INFINITY {
-                "−∞".to_owned()
-            } else if x == f64::MAX {
-                "max".to_owned()
-            } else if x == f64::MIN {
-                "−max".to_owned()
-            } else if x < 1.0 && x > 0.999_999 {
-                "1)".to_owned()
-            } else {
-                format!("{x}")
-            }
-        };
-        if self.is_empty() {
-            return f.write_str(if self.nan { "{NaN}" } else { "{}" });
-        }
-        let hi = bound(self.hi);
-        if hi.ends_with(')') {
-            write!(f, "[{}, {hi}", bound(self.lo))
-        } else {
-            write!(f, "[{}, {hi}]", bound(self.lo))
-        }
-    }
-}
-
-impl Range {
-    fn new(lo: f64, hi: f64) -> Range {
-        Range { lo, hi, nan: false }
-    }
-
-    fn all() -> Range {
-        Range {
-            lo: f64::NEG_INFINITY,
-            hi: f64::INFINITY,
-            nan: true,
-        }
-    }
-
-    /// Any finite value (parameters, positions).
-    fn finite() -> Range {
-        Range::new(f64::MIN, f64::MAX)
-    }
-
-    fn point(x: f64) -> Range {
-        if x.is_nan() {
-            Range {
-                lo: f64::INFINITY,
-                hi: f64::NEG_INFINITY,
-                nan: true,
-            }
-        } else {
-            Range::new(x, x)
-        }
-    }
-
-    fn boolean(can_false: bool, can_true: bool) -> Range {
-        match (can_false, can_true) {
-            (true, true) => Range::new(0.0, 1.0),
-            (true, false) => Range::point(0.0),
-            (false, true) => Range::point(1.0),
-            (false, false) => Range {
-                lo: f64::INFINITY,
-                hi: f64::NEG_INFINITY,
-                nan: false,
-            },
-        }
-    }
-
-    fn is_empty(&self) -> bool {
-        self.lo > self.hi
-    }
-
-    fn contains(&self, x: f64) -> bool {
-        self.lo <= x && x <= self.hi
-    }
-
-    /// (can be false, can be true) as a condition: zero is false, anything
-    /// else (NaN included) true.
-    fn truth(&self) -> (bool, bool) {
-        let can_false = self.contains(0.0);
-        let can_true = self.nan || (!self.is_empty() && (self.lo != 0.0 || self.hi != 0.0));
-        (can_false, can_true)
-    }
-
-    fn hull(self, other: Range) -> Range {
-        Range {
-            lo: self.lo.min(other.lo),
-            hi: self.hi.max(other.hi),
-            nan: self.nan || other.nan,
-        }
-    }
-
-    fn intersect(self, other: Range) -> Range {
-        Range {
-            lo: self.lo.max(other.lo),
-            hi: self.hi.min(other.hi),
-            nan: self.nan && other.nan,
-        }
-    }
-
-    /// A range from endpoint candidates; NaN among them means anything.
-    fn from_candidates(candidates: &[f64], nan: bool) -> Range {
-        if candidates.iter().any(|c| c.is_nan()) {
-            return Range::all();
-        }
-        let lo = candidates.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = candidates.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        Range { lo, hi, nan }
-    }
-
-    /// Applies a non-decreasing function.
-    fn monotone(self, f: impl Fn(f64) -> f64) -> Range {
-        if self.is_empty() {
-            return self;
-        }
-        Range::from_candidates(&[f(self.lo), f(self.hi)], self.nan)
-    }
-
-    fn infinite(&self) -> bool {
-        self.lo == f64::NEG_INFINITY || self.hi == f64::INFINITY
-    }
-}
-
-fn next_up(x: f64) -> f64 {
-    if x.is_nan() || x == f64::INFINITY {
-        return x;
-    }
-    if x == 0.0 {
-        return f64::from_bits(1);
-    }
-    let bits = x.to_bits();
-    f64::from_bits(if x > 0.0 { bits + 1 } else { bits - 1 })
-}
-
-fn next_down(x: f64) -> f64 {
-    -next_up(-x)
-}
-
-fn unary(f: Unary, x: Range) -> Range {
+fn unary(f: Unary, x: Interval) -> Interval {
     use std::f64::consts::{FRAC_PI_2, PI};
     if x.is_empty() && !matches!(f, Unary::Not | Unary::Truthy) {
         return x;
     }
     let nan_if = |cond: bool| x.nan || cond;
     match f {
-        Unary::Neg => Range {
+        Unary::Neg => Interval {
             lo: -x.hi,
             hi: -x.lo,
             nan: x.nan,
         },
         Unary::Not => {
             let (can_false, can_true) = x.truth();
-            Range::boolean(can_true, can_false)
+            Interval::boolean(can_true, can_false)
         }
         Unary::Truthy => {
             let (can_false, can_true) = x.truth();
-            Range::boolean(can_false, can_true)
+            Interval::boolean(can_false, can_true)
         }
         Unary::Abs => {
             if x.lo >= 0.0 {
@@ -1064,7 +914,7 @@ fn unary(f: Unary, x: Range) -> Range {
             } else if x.hi <= 0.0 {
                 unary(Unary::Neg, x)
             } else {
-                Range {
+                Interval {
                     lo: 0.0,
                     hi: (-x.lo).max(x.hi),
                     nan: x.nan,
@@ -1072,8 +922,8 @@ fn unary(f: Unary, x: Range) -> Range {
             }
         }
         Unary::Sqrt => {
-            let real = Range::new(x.lo.max(0.0), x.hi).monotone(libm::sqrt);
-            Range {
+            let real = Interval::new(x.lo.max(0.0), x.hi).monotone(libm::sqrt);
+            Interval {
                 nan: nan_if(x.lo < 0.0),
                 ..real
             }
@@ -1084,8 +934,8 @@ fn unary(f: Unary, x: Range) -> Range {
             } else {
                 libm::log10
             };
-            let real = Range::new(x.lo.max(0.0), x.hi).monotone(g);
-            Range {
+            let real = Interval::new(x.lo.max(0.0), x.hi).monotone(g);
+            Interval {
                 nan: nan_if(x.lo < 0.0),
                 ..real
             }
@@ -1098,26 +948,26 @@ fn unary(f: Unary, x: Range) -> Range {
         | Unary::Atan
         | Unary::Radians
         | Unary::Degrees => x.monotone(|v| f.apply(v)),
-        Unary::Sin | Unary::Cos => Range {
+        Unary::Sin | Unary::Cos => Interval {
             lo: -1.0,
             hi: 1.0,
             nan: nan_if(x.infinite()),
         },
-        Unary::Asin => Range {
+        Unary::Asin => Interval {
             lo: -FRAC_PI_2,
             hi: FRAC_PI_2,
             nan: nan_if(x.lo < -1.0 || x.hi > 1.0),
         },
-        Unary::Acos => Range {
+        Unary::Acos => Interval {
             lo: 0.0,
             hi: PI,
             nan: nan_if(x.lo < -1.0 || x.hi > 1.0),
         },
-        Unary::Tan => Range::all(),
+        Unary::Tan => Interval::all(),
     }
 }
 
-fn binary(f: Binary, a: Range, b: Range) -> Range {
+fn binary(f: Binary, a: Interval, b: Interval) -> Interval {
     use std::f64::consts::PI;
     let nan = a.nan || b.nan;
     let compare = |can_true: bool, can_false: bool, nan_result: bool| {
@@ -1130,7 +980,7 @@ fn binary(f: Binary, a: Range, b: Range) -> Range {
                 can_false = true;
             }
         }
-        Range::boolean(can_false, can_true)
+        Interval::boolean(can_false, can_true)
     };
     let empty = a.is_empty() || b.is_empty();
     match f {
@@ -1156,63 +1006,66 @@ fn binary(f: Binary, a: Range, b: Range) -> Range {
             // fmin/fmax ignore a NaN operand.
             let g = if f == Binary::Min { f64::min } else { f64::max };
             if a.is_empty() {
-                return Range {
+                return Interval {
                     nan: a.nan && b.nan,
                     ..b
                 };
             }
             if b.is_empty() {
-                return Range {
+                return Interval {
                     nan: a.nan && b.nan,
                     ..a
                 };
             }
-            let mut r = Range {
+            let mut r = Interval {
                 lo: g(a.lo, b.lo),
                 hi: g(a.hi, b.hi),
                 nan: a.nan && b.nan,
             };
             if a.nan {
-                r = r.hull(Range::new(b.lo, b.hi));
+                r = r.hull(Interval::new(b.lo, b.hi));
             }
             if b.nan {
-                r = r.hull(Range::new(a.lo, a.hi));
+                r = r.hull(Interval::new(a.lo, a.hi));
             }
             r
         }
-        _ if empty => Range {
+        _ if empty => Interval {
             lo: f64::INFINITY,
             hi: f64::NEG_INFINITY,
             nan: true,
         },
-        Binary::Add => Range::from_candidates(&[a.lo + b.lo, a.hi + b.hi], nan),
-        Binary::Sub => Range::from_candidates(&[a.lo - b.hi, a.hi - b.lo], nan),
+        Binary::Add => Interval::from_candidates(&[a.lo + b.lo, a.hi + b.hi], nan),
+        Binary::Sub => Interval::from_candidates(&[a.lo - b.hi, a.hi - b.lo], nan),
         Binary::Mul => {
-            Range::from_candidates(&[a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi], nan)
+            Interval::from_candidates(&[a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi], nan)
         }
         Binary::Div => {
             if b.contains(0.0) || b.infinite() || a.infinite() {
-                Range::all()
+                Interval::all()
             } else {
-                Range::from_candidates(&[a.lo / b.lo, a.lo / b.hi, a.hi / b.lo, a.hi / b.hi], nan)
+                Interval::from_candidates(
+                    &[a.lo / b.lo, a.lo / b.hi, a.hi / b.lo, a.hi / b.hi],
+                    nan,
+                )
             }
         }
         Binary::Rem => {
             let nan = nan || a.infinite();
             if b.lo > 0.0 {
-                Range {
+                Interval {
                     lo: 0.0,
                     hi: b.hi,
                     nan,
                 }
             } else if b.hi < 0.0 {
-                Range {
+                Interval {
                     lo: b.lo,
                     hi: 0.0,
                     nan,
                 }
             } else {
-                Range::all()
+                Interval::all()
             }
         }
         Binary::Pow => {
@@ -1224,10 +1077,10 @@ fn binary(f: Binary, a: Range, b: Range) -> Range {
                     a.monotone(|v| libm::pow(v, n))
                 }
             } else {
-                Range::all()
+                Interval::all()
             }
         }
-        Binary::Atan2 => Range {
+        Binary::Atan2 => Interval {
             lo: -PI,
             hi: PI,
             nan,
@@ -1235,7 +1088,7 @@ fn binary(f: Binary, a: Range, b: Range) -> Range {
     }
 }
 
-fn ternary(f: Ternary, a: Range, b: Range, c: Range) -> Range {
+fn ternary(f: Ternary, a: Interval, b: Interval, c: Interval) -> Interval {
     match f {
         Ternary::Clamp => binary(Binary::Min, binary(Binary::Max, a, b), c),
         Ternary::Lerp => binary(
@@ -1243,7 +1096,7 @@ fn ternary(f: Ternary, a: Range, b: Range, c: Range) -> Range {
             a,
             binary(Binary::Mul, binary(Binary::Sub, b, a), c),
         ),
-        Ternary::Smoothstep => Range {
+        Ternary::Smoothstep => Interval {
             lo: 0.0,
             hi: 1.0,
             nan: a.nan || b.nan || c.nan || a.infinite() || b.infinite() || c.infinite(),
@@ -1259,10 +1112,10 @@ struct Analysis<'i> {
 }
 
 impl Analysis<'_> {
-    fn eval(&self, t: &Tree, env: &[Range]) -> Range {
+    fn eval(&self, t: &Tree, env: &[Interval]) -> Interval {
         match t {
-            Tree::Const(v) => Range::point(*v),
-            Tree::Slot(s) => env.get(*s as usize).copied().unwrap_or(Range::all()),
+            Tree::Const(v) => Interval::point(*v),
+            Tree::Slot(s) => env.get(*s as usize).copied().unwrap_or(Interval::all()),
             Tree::Unary(f, x) => unary(*f, self.eval(x, env)),
             Tree::Binary(f, a, b) => {
                 let r = binary(*f, self.eval(a, env), self.eval(b, env));
@@ -1274,7 +1127,7 @@ impl Analysis<'_> {
                 let (mut can_false, mut can_true) = r.truth();
                 can_true = can_true && self.compare(*f, a, b, true, env).is_some();
                 can_false = can_false && self.compare(*f, a, b, false, env).is_some();
-                Range::boolean(can_false, can_true)
+                Interval::boolean(can_false, can_true)
             }
             Tree::Ternary(f, a, b, c) => {
                 ternary(*f, self.eval(a, env), self.eval(b, env), self.eval(c, env))
@@ -1300,14 +1153,14 @@ impl Analysis<'_> {
                         can_true |= b_true;
                     }
                 }
-                Range::boolean(can_false, can_true)
+                Interval::boolean(can_false, can_true)
             }
         }
     }
 
     /// The slot ranges left when `t`'s truth is `truth`: a union of boxes
     /// (empty when it cannot be), so `(x > 1 || x < -1)` keeps both sides.
-    fn assume(&self, t: &Tree, truth: bool, env: &[Range]) -> Vec<Vec<Range>> {
+    fn assume(&self, t: &Tree, truth: bool, env: &[Interval]) -> Vec<Vec<Interval>> {
         let (can_false, can_true) = self.eval(t, env).truth();
         if (truth && !can_true) || (!truth && !can_false) {
             return Vec::new();
@@ -1353,8 +1206,8 @@ impl Analysis<'_> {
         a: &Tree,
         b: &Tree,
         truth: bool,
-        env: &[Range],
-    ) -> Option<Vec<Range>> {
+        env: &[Interval],
+    ) -> Option<Vec<Interval>> {
         let op = if truth { Some(f) } else { negate(f) };
         let mut out = env.to_vec();
         let Some(op) = op else {
@@ -1378,7 +1231,7 @@ impl Analysis<'_> {
 
     /// Narrows slot `s` to the values `x` with `x op bound` for some value
     /// of `bound`; `None` when none is left.
-    fn narrow(&self, env: &mut [Range], s: usize, op: Binary, bound: Range) -> Option<()> {
+    fn narrow(&self, env: &mut [Interval], s: usize, op: Binary, bound: Interval) -> Option<()> {
         let Some(current) = env.get(s).copied() else {
             return Some(());
         };
@@ -1386,11 +1239,11 @@ impl Analysis<'_> {
             return Some(());
         }
         let allowed = match op {
-            Binary::Lt => Range::new(f64::NEG_INFINITY, next_down(bound.hi)),
-            Binary::Le => Range::new(f64::NEG_INFINITY, bound.hi),
-            Binary::Gt => Range::new(next_up(bound.lo), f64::INFINITY),
-            Binary::Ge => Range::new(bound.lo, f64::INFINITY),
-            Binary::Eq => Range::new(bound.lo, bound.hi),
+            Binary::Lt => Interval::new(f64::NEG_INFINITY, next_down(bound.hi)),
+            Binary::Le => Interval::new(f64::NEG_INFINITY, bound.hi),
+            Binary::Gt => Interval::new(next_up(bound.lo), f64::INFINITY),
+            Binary::Ge => Interval::new(bound.lo, f64::INFINITY),
+            Binary::Eq => Interval::new(bound.lo, bound.hi),
             _ => return Some(()),
         };
         let mut r = current.intersect(allowed);
@@ -1447,10 +1300,10 @@ mod tests {
         let names = SlotNames(&["x", "n", "r", "c"]);
         let expr = Expr::compile(source, &names).unwrap();
         let env = [
-            Range::finite(),
-            Range::new(0.0, f64::INFINITY),
-            Range::new(0.0, next_down(1.0)),
-            Range::new(-1.0, 1.0),
+            Interval::finite(),
+            Interval::new(0.0, f64::INFINITY),
+            Interval::new(0.0, next_down(1.0)),
+            Interval::new(-1.0, 1.0),
         ];
         let integer = [false, true, false, false];
         Analysis { integer: &integer }

@@ -28,44 +28,10 @@ use super::{
     edge_item, mesh_items, primitives_intersect, push_face, push_ring, Element, Item, Primitive,
     Scratch, WireThickness, NO_VERT,
 };
+use crate::geom::boxes::{round_down, round_up};
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
 use crate::kernel::ops::Selection;
-
-// ---- conservative f32 boxes ----
-
-/// The largest `f32` not above `x` (−∞ stays −∞).
-pub(super) fn round_down(x: f64) -> f32 {
-    let f = x as f32;
-    if f64::from(f) > x {
-        step_down(f)
-    } else {
-        f
-    }
-}
-
-/// The smallest `f32` not below `x`.
-pub(super) fn round_up(x: f64) -> f32 {
-    let f = x as f32;
-    if f64::from(f) < x {
-        -step_down(-f)
-    } else {
-        f
-    }
-}
-
-/// The next `f32` towards −∞ (`f32::next_down` needs Rust 1.86).
-fn step_down(f: f32) -> f32 {
-    if f.is_nan() || f == f32::NEG_INFINITY {
-        f
-    } else if f == 0.0 {
-        -f32::from_bits(1)
-    } else if f > 0.0 {
-        f32::from_bits(f.to_bits() - 1)
-    } else {
-        f32::from_bits(f.to_bits() + 1)
-    }
-}
 
 /// Box of a primitive grown by `pad`, rounded outward to `f32` and clamped
 /// to the finite `f32` range. Rounding outward and clamping are monotone, so

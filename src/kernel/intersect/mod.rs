@@ -91,7 +91,6 @@
 
 pub mod bvh;
 mod pairs;
-pub mod predicates;
 #[cfg(test)]
 mod tests;
 
@@ -103,8 +102,10 @@ pub use pairs::{PairLimits, PairSearch};
 
 use super::ids::{Domain, EdgeId, FaceId, VertId};
 use super::mesh::Mesh;
-use super::polygon;
-use predicates::{orient3d, point_on_segment, shapes_meet, shapes_touch, Plane, Shape};
+use crate::geom::polygon;
+use crate::geom::predicates::{
+    self, orient3d, point_on_segment, shapes_meet, shapes_touch, Plane, Shape,
+};
 
 // ---- the narrow phase on bare geometry ----
 

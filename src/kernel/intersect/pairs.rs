@@ -41,13 +41,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::DVec3;
 use rustc_hash::FxHashSet;
 
-use super::predicates::{orient3d_filtered_at, Plane};
 #[cfg(test)]
 use super::Item;
 use super::{primitives_intersect, Element, Primitive, WireThickness, NO_VERT};
+use crate::geom::boxes::Box3;
+use crate::geom::polygon;
+use crate::geom::predicates::{orient3d_filtered_at, Plane};
 use crate::kernel::ids::{EdgeId, FaceId};
 use crate::kernel::mesh::Mesh;
-use crate::kernel::polygon;
 
 // ---- flat primitives ----
 
@@ -405,68 +406,6 @@ fn join<T>(handle: std::thread::ScopedJoinHandle<'_, T>) -> T {
     handle
         .join()
         .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-}
-
-// ---- boxes ----
-
-/// An axis-aligned `f32` box; closed (touching boxes overlap).
-#[derive(Clone, Copy, Debug)]
-struct Box3 {
-    lo: [f32; 3],
-    hi: [f32; 3],
-}
-
-impl Box3 {
-    const EMPTY: Box3 = Box3 {
-        lo: [f32::INFINITY; 3],
-        hi: [f32::NEG_INFINITY; 3],
-    };
-
-    /// A box around the `f64` box `lo ..= hi` (finite or infinite, not
-    /// NaN), clamped to the finite `f32` range. Each bound is first moved
-    /// outward by `|x|·2⁻²² + 2⁻¹⁴⁰`, more than the error of the `f64`
-    /// subtraction plus half an `f32` step (`|x|·2⁻²⁴`, or `2⁻¹⁵⁰` for
-    /// subnormals), so the nearest `f32` is still outside: `lo' ≤ lo` and
-    /// `hi' ≥ hi` before clamping (no rounding-direction branches, which
-    /// mispredict half the time). Clamping is monotone, so boxes whose
-    /// `f64` bounds overlap still overlap here.
-    #[inline]
-    fn around(lo: DVec3, hi: DVec3) -> Box3 {
-        const REL: f64 = 1.0 / (1u64 << 22) as f64;
-        const ABS: f64 = 1.0 / (1u128 << 70) as f64 / (1u128 << 70) as f64;
-        let out = |x: f64, up: bool| {
-            let d = x.abs() * REL + ABS;
-            let y = if up { x + d } else { x - d };
-            (y as f32).clamp(f32::MIN, f32::MAX)
-        };
-        Box3 {
-            lo: lo.to_array().map(|x| out(x, false)),
-            hi: hi.to_array().map(|x| out(x, true)),
-        }
-    }
-
-    #[inline(always)]
-    fn overlaps(&self, o: &Box3) -> bool {
-        (self.lo[0] <= o.hi[0])
-            & (o.lo[0] <= self.hi[0])
-            & (self.lo[1] <= o.hi[1])
-            & (o.lo[1] <= self.hi[1])
-            & (self.lo[2] <= o.hi[2])
-            & (o.lo[2] <= self.hi[2])
-    }
-
-    #[inline]
-    fn union(&self, o: &Box3) -> Box3 {
-        Box3 {
-            lo: [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
-            hi: [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
-        }
-    }
-
-    /// Sum of the extents: orders boxes by size for the descent.
-    fn size(&self) -> f32 {
-        (0..3).map(|k| self.hi[k] - self.lo[k]).sum()
-    }
 }
 
 // ---- the linear BVH ----

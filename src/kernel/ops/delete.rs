@@ -17,6 +17,7 @@
 //! order, so results do not depend on the order given.
 
 use super::{canonical, OpError, Selection};
+use crate::geom::UnionFind;
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
 
@@ -189,14 +190,7 @@ pub fn dissolve_edges_report(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Dissol
     let mut result = DissolveResult::default();
     // Regions: faces joined through dissolvable edges (union-find over
     // face slots; ids ascend, so the representative is the lowest face).
-    let mut parent: Vec<u32> = (0..mesh.face_capacity() as u32).collect();
-    fn root(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            parent[x as usize] = parent[parent[x as usize] as usize];
-            x = parent[x as usize];
-        }
-        x
-    }
+    let mut sets = UnionFind::new(mesh.face_capacity());
     let mut inner: Vec<EdgeId> = Vec::new();
     for &e in &edges {
         let faces: Vec<FaceId> = mesh.edge_faces(e).collect();
@@ -205,18 +199,13 @@ pub fn dissolve_edges_report(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Dissol
             continue;
         }
         inner.push(e);
-        let (a, b) = (
-            root(&mut parent, faces[0].index() as u32),
-            root(&mut parent, faces[1].index() as u32),
-        );
-        let (low, high) = (a.min(b), a.max(b));
-        parent[high as usize] = low;
+        sets.union(faces[0].index() as u32, faces[1].index() as u32);
     }
     // Faces and inner edges by region, regions by their lowest face.
     let mut regions: Vec<(u32, Vec<FaceId>, Vec<EdgeId>)> = Vec::new();
     for &e in &inner {
         let f = mesh.edge_faces(e).next().expect("two faces");
-        let r = root(&mut parent, f.index() as u32);
+        let r = sets.find(f.index() as u32);
         let slot = match regions.binary_search_by_key(&r, |(key, ..)| *key) {
             Ok(i) => i,
             Err(i) => {
@@ -227,7 +216,7 @@ pub fn dissolve_edges_report(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Dissol
         regions[slot].2.push(e);
     }
     for f in mesh.face_ids() {
-        let r = root(&mut parent, f.index() as u32);
+        let r = sets.find(f.index() as u32);
         if let Ok(i) = regions.binary_search_by_key(&r, |(key, ..)| *key) {
             regions[i].1.push(f);
         }

@@ -90,16 +90,6 @@ impl ExtrudeOffset {
 /// each other would otherwise send the vertex arbitrarily far.
 const MIN_SHELL_COSINE: f64 = 0.1;
 
-/// Normalised mean of the unit normals of all faces around `v` (Newell
-/// normals from current positions, so a stale stored normal cannot mislead);
-/// zero for a vertex without faces or whose normals cancel.
-fn vertex_normal(mesh: &Mesh, v: VertId) -> DVec3 {
-    mesh.vert_faces(v)
-        .map(|f| mesh.compute_face_normal(f))
-        .sum::<DVec3>()
-        .normalize_or_zero()
-}
-
 /// The even-thickness direction for unit normals `normals` (zero ones are
 /// ignored): the normalised mean, divided by the mean cosine between it and
 /// each normal, so that a vertex moved by `d` times it keeps every face plane
@@ -149,7 +139,7 @@ pub fn extrude_verts(
     }
     let targets: Vec<DVec3> = verts
         .iter()
-        .map(|&v| mesh.position(v) + offset.displacement(|| vertex_normal(mesh, v)))
+        .map(|&v| mesh.position(v) + offset.displacement(|| mesh.vert_normal_from_positions(v)))
         .collect();
     check_targets(&targets)?;
 
@@ -194,7 +184,7 @@ pub fn extrude_edges(
     );
     let targets: Vec<DVec3> = verts
         .iter()
-        .map(|&v| mesh.position(v) + offset.displacement(|| vertex_normal(mesh, v)))
+        .map(|&v| mesh.position(v) + offset.displacement(|| mesh.vert_normal_from_positions(v)))
         .collect();
     check_targets(&targets)?;
     // Winding and attribute source of each quad, decided on the unchanged mesh.

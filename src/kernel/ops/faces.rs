@@ -5,7 +5,7 @@
 //! - [`make_face_from_edges`] accepts the ring's edges in any order (a rule
 //!   selects them by condition, not by walk order) and orders them itself.
 //! - [`triangulate`] replaces every n-gon by n − 2 triangles from the
-//!   constrained Delaunay triangulation in [`crate::kernel::polygon`],
+//!   constrained Delaunay triangulation in [`crate::geom::polygon`],
 //!   falling back to a fan when that cannot give a valid triangulation of
 //!   the ring (degenerate outlines). Triangles are wound by ring order, not
 //!   by geometry, so they always agree with the original face.
@@ -19,7 +19,8 @@ use glam::DVec3;
 use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::{canonical, OpError, Selection};
-use crate::kernel::{polygon, EdgeId, FaceId, KernelError, Mesh, VertId};
+use crate::geom::polygon;
+use crate::kernel::{EdgeId, FaceId, KernelError, Mesh, VertId};
 
 /// One face on a closed ring of existing edges, given in any order.
 ///

@@ -53,6 +53,8 @@ use glam::DVec3;
 use rustc_hash::FxHashMap;
 
 use super::delete::duplicate_mapped;
+use crate::geom::UnionFind;
+
 use super::{canonical, OpError, Selection};
 use crate::kernel::attrs::AttrValue;
 use crate::kernel::ids::{Domain, FaceId, VertId};
@@ -211,37 +213,6 @@ fn check_distance(name: &'static str, distance: f64) -> Result<(), OpError> {
 }
 
 // ---- clustering ----
-
-/// Union-find over point indices; a root is always its set's lowest index.
-struct UnionFind {
-    parent: Vec<u32>,
-}
-
-impl UnionFind {
-    fn new(n: usize) -> Self {
-        Self {
-            parent: (0..n as u32).collect(),
-        }
-    }
-
-    fn find(&mut self, mut i: u32) -> u32 {
-        while self.parent[i as usize] != i {
-            let grand = self.parent[self.parent[i as usize] as usize];
-            self.parent[i as usize] = grand;
-            i = grand;
-        }
-        i
-    }
-
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra < rb {
-            self.parent[rb as usize] = ra;
-        } else if rb < ra {
-            self.parent[ra as usize] = rb;
-        }
-    }
-}
 
 /// Up to this many points [`cluster_roots`] compares every pair.
 const SMALL_CLUSTER_INPUT: usize = 24;

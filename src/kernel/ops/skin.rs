@@ -36,6 +36,7 @@ use glam::DVec3;
 
 use super::create::create_uv_sphere;
 use super::OpError;
+use crate::geom::frame::any_perpendicular;
 use crate::kernel::attrs::{AttrValue, LayerKind};
 use crate::kernel::ids::{Domain, VertId};
 use crate::kernel::mesh::Mesh;
@@ -384,18 +385,7 @@ fn reference_perpendicular(mesh: &Mesh, ends: [VertId; 2], axis: DVec3) -> DVec3
             }
             _ => None,
         });
-    from_left.unwrap_or_else(|| {
-        let m = axis.abs();
-        let world = if m.x <= m.y && m.x <= m.z {
-            DVec3::X
-        } else if m.y <= m.z {
-            DVec3::Y
-        } else {
-            DVec3::Z
-        };
-        // |cos| <= 1/sqrt(3) with the least aligned axis: never degenerate.
-        (world - axis * axis.dot(world)).normalize()
-    })
+    from_left.unwrap_or_else(|| any_perpendicular(axis))
 }
 
 fn set_radius(out: &mut Mesh, v: VertId, radius: f64) {

@@ -10,8 +10,28 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use super::IoError;
-use crate::kernel::polygon;
+use super::polygon;
+
+/// Why an [`IndexedMesh`] cannot be written.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// A vertex has a NaN or infinite coordinate.
+    #[error("cannot write mesh: vertex {vertex} has a non-finite coordinate")]
+    NonFinite { vertex: usize },
+    /// A vertex scalar is NaN or infinite.
+    #[error("cannot write mesh: vertex scalar {name:?} is not finite at vertex {vertex}")]
+    NonFiniteScalar { name: String, vertex: usize },
+    /// A coordinate does not fit the format's number type.
+    #[error("cannot write {format}: vertex {vertex} coordinate {value:e} does not fit an f32")]
+    OutOfRange {
+        vertex: usize,
+        value: f64,
+        format: &'static str,
+    },
+    /// The storage is inconsistent or exceeds a limit.
+    #[error("cannot write mesh: {message}")]
+    Invalid { message: String },
+}
 
 /// A format-neutral indexed polygon mesh.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -92,15 +112,15 @@ impl IndexedMesh {
 
     /// Checks everything the writers rely on: polygon storage, polygon sizes (at least 3),
     /// index ranges, finite positions, and scalar names, lengths and values.
-    pub fn validate(&self) -> Result<(), IoError> {
-        let invalid = |message: String| Err(IoError::InvalidMesh { message });
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let invalid = |message: String| Err(MeshError::Invalid { message });
         let count = self.positions.len();
         if u32::try_from(count).is_err() {
             return invalid(format!("{count} vertices exceed the u32 index range"));
         }
         for (vertex, p) in self.positions.iter().enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
-                return Err(IoError::NonFinite { vertex });
+                return Err(MeshError::NonFinite { vertex });
             }
         }
         let starts = &self.face_starts;
@@ -165,7 +185,7 @@ impl IndexedMesh {
                 ));
             }
             if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
-                return Err(IoError::NonFiniteScalar {
+                return Err(MeshError::NonFiniteScalar {
                     name: name.clone(),
                     vertex,
                 });
@@ -191,10 +211,10 @@ impl IndexedMesh {
     }
 
     /// Fails if some position does not fit an `f32` (binary STL, glTF).
-    pub(crate) fn check_f32_range(&self, format: &'static str) -> Result<(), IoError> {
+    pub(crate) fn check_f32_range(&self, format: &'static str) -> Result<(), MeshError> {
         for (vertex, p) in self.positions.iter().enumerate() {
             if let Some(&value) = p.iter().find(|c| c.abs() > f32::MAX as f64) {
-                return Err(IoError::OutOfRange {
+                return Err(MeshError::OutOfRange {
                     vertex,
                     value,
                     format,
@@ -422,7 +442,7 @@ mod tests {
         m.positions[1][2] = f64::NAN;
         assert!(matches!(
             m.validate(),
-            Err(IoError::NonFinite { vertex: 1 })
+            Err(MeshError::NonFinite { vertex: 1 })
         ));
 
         let mut m = base.clone();
@@ -465,7 +485,7 @@ mod tests {
             .push(("r".into(), vec![1.0, f64::INFINITY, 0.0]));
         assert!(matches!(
             m.validate(),
-            Err(IoError::NonFiniteScalar { vertex: 1, .. })
+            Err(MeshError::NonFiniteScalar { vertex: 1, .. })
         ));
     }
 

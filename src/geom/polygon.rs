@@ -84,14 +84,7 @@ pub fn plane_basis(normal: DVec3) -> (DVec3, DVec3) {
     }
     let n = (normal / big).normalize();
     let a = n.abs();
-    // The coordinate axis least aligned with the normal; ties go to the earlier axis.
-    let axis = if a.x <= a.y && a.x <= a.z {
-        DVec3::X
-    } else if a.y <= a.z {
-        DVec3::Y
-    } else {
-        DVec3::Z
-    };
+    let axis = super::frame::least_aligned_axis(a);
     let u = n.cross(axis).normalize();
     let v = n.cross(u);
     (u, v)

@@ -1,0 +1,31 @@
+//! The geometry floor: math every other part of graftal shares, knowing
+//! nothing of the rest of the crate (no kernel, rules, engine or files).
+//!
+//! - [`polygon`]: Newell normals, areas, plane bases, triangulation of any
+//!   ring (constrained Delaunay through spade, ear clipping as a bounded
+//!   fallback).
+//! - [`predicates`]: exact orientation tests and segment/triangle contact
+//!   (robust `orient3d`/`orient2d` with filters).
+//! - [`boxes`]: conservative `f32` boxes around `f64` geometry (rounded
+//!   outward, so a broad phase never loses a candidate).
+//! - [`frame`]: orthonormal turtle frames and a deterministic perpendicular.
+//! - [`interval`]: interval arithmetic with a NaN flag (the linter judges
+//!   conditions with it).
+//! - [`indexed`]: [`IndexedMesh`], the neutral polygon mesh every reader
+//!   makes and every writer takes, and [`sink`]: the [`MeshSink`] trait
+//!   every producer of geometry emits through.
+//! - [`union_find`] and [`names`] (the "did you mean" of every message).
+
+pub mod boxes;
+pub mod frame;
+pub mod indexed;
+pub mod interval;
+pub mod names;
+pub mod polygon;
+pub mod predicates;
+pub mod sink;
+pub mod union_find;
+
+pub use indexed::IndexedMesh;
+pub use sink::MeshSink;
+pub use union_find::UnionFind;

@@ -1,0 +1,342 @@
+//! The kernel's side of [`MeshSink`]: [`KernelBuilder`] turns emitted
+//! geometry into kernel elements (through Euler operators only) and names
+//! what it made; [`Mesh::emit`] hands a kernel mesh to any sink in
+//! canonical order (vertices in id order, compacted; faces in id order,
+//! each from its first loop; wire edges in id order; scalar vertex layers
+//! in layer order), so equal meshes give equal buffers and writers equal
+//! bytes.
+//!
+//! ```
+//! use graftal::geom::IndexedMesh;
+//! use graftal::kernel::build::mesh_from_indexed;
+//!
+//! let mut square = IndexedMesh::new();
+//! square.positions = vec![[0.0; 3], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+//! square.push_polygon(&[0, 1, 2, 3]);
+//! let (mesh, report) = mesh_from_indexed(&square).unwrap();
+//! assert_eq!((mesh.face_count(), report.degenerate_faces), (1, 0));
+//! assert_eq!(mesh.to_indexed(), square);
+//! ```
+
+use glam::DVec3;
+
+use super::attrs::{AttrValue, LayerData};
+use super::ids::{Domain, EdgeId, FaceId, VertId};
+use super::mesh::Mesh;
+use super::ops::Selection;
+use crate::geom::sink::{Begin, MeshSink, SinkError};
+use crate::geom::IndexedMesh;
+
+/// What was dropped while building kernel elements from emitted geometry.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ImportReport {
+    /// Polygons with fewer than 3 distinct corners (degenerate input).
+    pub degenerate_faces: usize,
+}
+
+/// Builds kernel elements into a mesh, fresh or not, from emitted
+/// geometry. Polygons are cleaned of consecutive repeated corners; a
+/// polygon that still repeats a corner is split into its simple loops;
+/// loops under 3 corners are dropped and counted. Every vertex is new, so
+/// every edge between them is too.
+pub struct KernelBuilder<'m> {
+    mesh: &'m mut Mesh,
+    /// Emitted vertex index → kernel vertex.
+    verts: Vec<VertId>,
+    scalars: Vec<String>,
+    faces: Vec<FaceId>,
+    lines: Vec<EdgeId>,
+    polygons_seen: usize,
+    report: ImportReport,
+    ring: Vec<VertId>,
+}
+
+impl<'m> KernelBuilder<'m> {
+    pub fn new(mesh: &'m mut Mesh) -> Self {
+        KernelBuilder {
+            mesh,
+            verts: Vec::new(),
+            scalars: Vec::new(),
+            faces: Vec::new(),
+            lines: Vec::new(),
+            polygons_seen: 0,
+            report: ImportReport::default(),
+            ring: Vec::new(),
+        }
+    }
+
+    /// What the emission made (ids ascending) and what it dropped.
+    pub fn finish(self) -> (Selection, ImportReport) {
+        let mut edges: Vec<EdgeId> = self
+            .faces
+            .iter()
+            .flat_map(|&f| self.mesh.face_edges(f).collect::<Vec<_>>())
+            .collect();
+        edges.extend(&self.lines);
+        let made = Selection::from_parts(self.verts, edges, self.faces);
+        (made, self.report)
+    }
+}
+
+impl MeshSink for KernelBuilder<'_> {
+    fn begin(&mut self, begin: &Begin) -> Result<(), SinkError> {
+        for name in begin.scalars {
+            // A same-named layer of another kind stays; values then do not land.
+            let _ = self
+                .mesh
+                .add_layer(name, Domain::Vert, AttrValue::Scalar(0.0));
+        }
+        self.scalars = begin.scalars.iter().map(|n| n.to_string()).collect();
+        self.verts.reserve(begin.vertices);
+        Ok(())
+    }
+
+    fn vertex(&mut self, position: DVec3, scalars: &[f64]) -> Result<(), SinkError> {
+        if !position.is_finite() {
+            return Err(SinkError::NonFinite {
+                index: self.verts.len(),
+            });
+        }
+        if scalars.len() != self.scalars.len() {
+            return Err(SinkError::ScalarCount {
+                vertex: self.verts.len(),
+                found: scalars.len(),
+                expected: self.scalars.len(),
+            });
+        }
+        let v = self.mesh.make_vert(position);
+        for (name, &value) in self.scalars.iter().zip(scalars) {
+            self.mesh
+                .set_attr(name, Domain::Vert, v.index(), AttrValue::Scalar(value));
+        }
+        self.verts.push(v);
+        Ok(())
+    }
+
+    fn polygon(&mut self, corners: &[u32]) -> Result<(), SinkError> {
+        let face = self.polygons_seen;
+        self.polygons_seen += 1;
+        let count = self.verts.len();
+        self.ring.clear();
+        for &i in corners {
+            let v = *self.verts.get(i as usize).ok_or(SinkError::BadIndex {
+                face,
+                vertex: i,
+                count,
+            })?;
+            if self.ring.last() != Some(&v) {
+                self.ring.push(v);
+            }
+        }
+        while self.ring.len() > 1 && self.ring.first() == self.ring.last() {
+            self.ring.pop();
+        }
+        for piece in simple_loops(&self.ring) {
+            match (piece.len() >= 3).then(|| self.mesh.make_face(&piece)) {
+                Some(Ok(f)) => self.faces.push(f),
+                _ => self.report.degenerate_faces += 1,
+            }
+        }
+        Ok(())
+    }
+
+    fn line(&mut self, a: u32, b: u32) -> Result<(), SinkError> {
+        let line = self.lines.len();
+        let count = self.verts.len();
+        let get = |i: u32| {
+            self.verts
+                .get(i as usize)
+                .copied()
+                .ok_or(SinkError::BadLineIndex {
+                    line,
+                    vertex: i,
+                    count,
+                })
+        };
+        let (a, b) = (get(a)?, get(b)?);
+        if a != b && self.mesh.find_edge(a, b).is_none() {
+            let e = self
+                .mesh
+                .make_edge(a, b)
+                .expect("distinct live vertices without an edge");
+            self.lines.push(e);
+        }
+        Ok(())
+    }
+
+    fn end(&mut self) -> Result<(), SinkError> {
+        Ok(())
+    }
+
+    /// Leaves what was built: a caller that gives up drops the mesh (a
+    /// fresh one) or fails the run (the engine's working mesh).
+    fn abort(&mut self) {}
+}
+
+/// Splits a ring that visits a vertex more than once into simple loops.
+fn simple_loops(ring: &[VertId]) -> Vec<Vec<VertId>> {
+    let mut out = Vec::new();
+    let mut stack: Vec<VertId> = Vec::with_capacity(ring.len());
+    for &v in ring {
+        if let Some(at) = stack.iter().position(|&w| w == v) {
+            out.push(stack.split_off(at));
+        }
+        stack.push(v);
+    }
+    out.push(stack);
+    out.retain(|l| !l.is_empty());
+    out
+}
+
+/// A fresh kernel mesh from an indexed one, with what was dropped.
+pub fn mesh_from_indexed(indexed: &IndexedMesh) -> Result<(Mesh, ImportReport), SinkError> {
+    let mut mesh = Mesh::new();
+    let mut builder = KernelBuilder::new(&mut mesh);
+    indexed.emit(&mut builder)?;
+    let (_, report) = builder.finish();
+    Ok((mesh, report))
+}
+
+/// Appends an indexed mesh to `mesh`; returns what was made.
+pub fn append_indexed(mesh: &mut Mesh, indexed: &IndexedMesh) -> Result<Selection, SinkError> {
+    let mut builder = KernelBuilder::new(mesh);
+    indexed.emit(&mut builder)?;
+    Ok(builder.finish().0)
+}
+
+impl Mesh {
+    /// Hands the mesh to `sink` in canonical order (see the module doc).
+    pub fn emit(&self, sink: &mut dyn MeshSink) -> Result<(), SinkError> {
+        let layers: Vec<(&str, &[f64])> = self
+            .attributes()
+            .layers()
+            .iter()
+            .filter(|layer| layer.domain == Domain::Vert)
+            .filter_map(|layer| match &layer.data {
+                LayerData::Scalar(values) => Some((layer.name.as_str(), values.as_slice())),
+                _ => None,
+            })
+            .collect();
+        let names: Vec<&str> = layers.iter().map(|(n, _)| *n).collect();
+        let wires: Vec<EdgeId> = self.edge_ids().filter(|&e| self.is_wire_edge(e)).collect();
+        let run = |sink: &mut dyn MeshSink| -> Result<(), SinkError> {
+            sink.begin(&Begin {
+                vertices: self.vert_count(),
+                polygons: self.face_count(),
+                lines: wires.len(),
+                scalars: &names,
+            })?;
+            let mut index_of = vec![u32::MAX; self.vert_capacity()];
+            let mut scalars = vec![0.0; layers.len()];
+            for (i, v) in self.vert_ids().enumerate() {
+                index_of[v.index()] = i as u32;
+                for (slot, (_, values)) in scalars.iter_mut().zip(&layers) {
+                    *slot = values[v.index()];
+                }
+                sink.vertex(self.position(v), &scalars)?;
+            }
+            let mut corners: Vec<u32> = Vec::new();
+            for f in self.face_ids() {
+                corners.clear();
+                corners.extend(self.face_verts(f).map(|v| index_of[v.index()]));
+                sink.polygon(&corners)?;
+            }
+            for &e in &wires {
+                let [a, b] = self.edge_verts(e);
+                sink.line(index_of[a.index()], index_of[b.index()])?;
+            }
+            sink.end()
+        };
+        run(sink).inspect_err(|_| sink.abort())
+    }
+
+    /// The canonical indexed view of the mesh (what the writers take).
+    pub fn to_indexed(&self) -> IndexedMesh {
+        let mut out = IndexedMesh::new();
+        self.emit(&mut out)
+            .expect("collecting a valid mesh into an indexed one cannot fail");
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_keeps_topology_lines_and_attributes() {
+        let mut m = IndexedMesh::new();
+        m.positions = vec![
+            [0., 0., 0.],
+            [1., 0., 0.],
+            [1., 1., 0.],
+            [0., 1., 0.],
+            [2., 2., 2.],
+        ];
+        m.push_polygon(&[0, 1, 2, 3]);
+        m.lines.push([2, 4]);
+        m.vertex_scalars
+            .push(("radius".into(), vec![0.1, 0.2, 0.3, 0.4, 0.5]));
+        let (mesh, _) = mesh_from_indexed(&m).unwrap();
+        mesh.validate().unwrap();
+        assert_eq!(
+            (mesh.vert_count(), mesh.edge_count(), mesh.face_count()),
+            (5, 5, 1)
+        );
+        assert_eq!(mesh.to_indexed(), m);
+    }
+
+    #[test]
+    fn degenerate_polygons_are_cleaned_or_counted() {
+        let mut m = IndexedMesh::new();
+        m.positions = vec![
+            [0., 0., 0.],
+            [1., 0., 0.],
+            [1., 1., 0.],
+            [0., 1., 0.],
+            [2., 0., 0.],
+            [2., 1., 0.],
+        ];
+        m.push_polygon(&[0, 1, 1, 2]); // consecutive repeat: a triangle
+        m.push_polygon(&[0, 0, 3]); // two distinct corners: dropped
+        m.push_polygon(&[1, 4, 5, 1, 2, 3]); // bow-tie through 1: two loops
+        let (mesh, report) = mesh_from_indexed(&m).unwrap();
+        mesh.validate().unwrap();
+        assert_eq!(mesh.face_count(), 3);
+        assert_eq!(report.degenerate_faces, 1);
+    }
+
+    #[test]
+    fn bad_indices_are_reported_not_panicked() {
+        let mut m = IndexedMesh::new();
+        m.positions = vec![[0., 0., 0.]];
+        m.push_polygon(&[0, 1, 2]);
+        assert_eq!(
+            mesh_from_indexed(&m).unwrap_err(),
+            SinkError::BadIndex {
+                face: 0,
+                vertex: 1,
+                count: 1
+            }
+        );
+    }
+
+    #[test]
+    fn appending_names_what_was_made() {
+        let mut m = IndexedMesh::new();
+        m.positions = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [3., 3., 3.]];
+        m.push_polygon(&[0, 1, 2]);
+        m.lines.push([2, 3]);
+        let mut mesh = Mesh::new();
+        let first = append_indexed(&mut mesh, &m).unwrap();
+        let second = append_indexed(&mut mesh, &m).unwrap();
+        mesh.validate().unwrap();
+        for made in [&first, &second] {
+            assert_eq!(
+                (made.verts.len(), made.edges.len(), made.faces.len()),
+                (4, 4, 1)
+            );
+        }
+        assert!(first.verts.iter().all(|v| !second.verts.contains(v)));
+    }
+}
