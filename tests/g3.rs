@@ -339,7 +339,11 @@ repeat = 30
     )
     .unwrap_err();
     assert_eq!(err.kind, RunErrorKind::TooLarge);
-    assert!(err.message.contains("limit of 1000"), "{}", err.message);
+    assert!(
+        err.error.to_string().contains("limit of 1000"),
+        "{}",
+        err.error
+    );
 }
 
 #[test]
@@ -408,5 +412,9 @@ fn relative_length_without_a_preceding_edge_is_a_located_runtime_error() {
         "{}",
         err.location
     );
-    assert!(err.message.contains("no incoming edge"), "{}", err.message);
+    assert!(
+        err.error.to_string().contains("no incoming edge"),
+        "{}",
+        err.error
+    );
 }

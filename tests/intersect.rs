@@ -170,7 +170,11 @@ fn error_stops_the_run_with_a_located_message() {
     let p = program(&text).unwrap();
     let err = run(&p, &RunOptions::default()).unwrap_err();
     assert!(
-        err.message
+        matches!(err.error, graftal::grammar::StepError::Intersects { .. }),
+        "{err}"
+    );
+    assert!(
+        err.to_string()
             .contains("would make a primitive that intersects the model"),
         "{err}"
     );

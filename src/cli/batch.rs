@@ -25,7 +25,7 @@ use super::stats::{self, steps_json};
 use super::{output_format, Failure, EXIT_RUNTIME};
 use crate::grammar::{self, RunErrorKind, RunOptions};
 use crate::io;
-use crate::rules::{self, Override, Program};
+use crate::rules::{Override, Program};
 
 /// More variants than this in one batch is surely a typo'd range.
 pub const MAX_VARIANTS: u64 = 10_000_000;
@@ -459,7 +459,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             name: axis.name.clone(),
             value: value.clone(),
         }));
-        programs.push(rules::compile_file(&args.rules, &overrides)?);
+        programs.push(super::files::compile_rules(&args.rules, &overrides)?);
     }
     // Every grid combination compiles the same file, so needs the same
     // files: read once, shared by every variant.

@@ -30,13 +30,39 @@ use sha2::{Digest, Sha256};
 
 use super::Failure;
 use crate::io::{self as meshio, IndexedMesh, MeshFormat};
-use crate::rules::Program;
+use crate::rules::compile::source_from_bytes;
+use crate::rules::diagnostic::SourceFile;
+use crate::rules::{compile_source, Override, Program, RuleError};
 
 /// How far input files may reach.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct InputPolicy {
     /// Follow absolute and `..` references out of a file's directory.
     pub allow_outside: bool,
+}
+
+/// Reads a rule file (a regular file, UTF-8: a bad byte is located).
+pub fn read_rules(path: &Path) -> Result<SourceFile, RuleError> {
+    let name = path.display().to_string();
+    let bytes = read_input(path).map_err(|err| {
+        let empty = SourceFile {
+            name: name.clone(),
+            text: String::new(),
+        };
+        RuleError::at(&empty, None, format!("cannot read rule file: {err}"))
+    })?;
+    source_from_bytes(name, bytes)
+}
+
+/// Reads and compiles a rule file; its paths resolve against its directory.
+pub fn compile_rules(path: &Path, overrides: &[Override]) -> Result<Program, RuleError> {
+    let file = read_rules(path)?;
+    compile_source(&file, overrides, &base_dir(path))
+}
+
+/// The directory a rule file's paths resolve against.
+pub fn base_dir(path: &Path) -> PathBuf {
+    path.parent().map(Path::to_path_buf).unwrap_or_default()
 }
 
 /// Reads a whole input file, refusing anything but a regular file.

@@ -20,7 +20,7 @@ use clap::{Parser, Subcommand};
 use crate::grammar;
 use crate::io;
 use crate::kernel::build::mesh_from_indexed;
-use crate::rules::{self, Override, RuleError};
+use crate::rules::{Override, RuleError};
 
 /// Exit status for a failure at run time.
 pub const EXIT_RUNTIME: u8 = 1;
@@ -355,7 +355,7 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             overrides,
             input,
         } => {
-            let program = rules::compile_file(&rules, &overrides)?;
+            let program = files::compile_rules(&rules, &overrides)?;
             files::load_inputs(&program, input.policy())?;
             write_stdout(
                 format!(

@@ -12,7 +12,7 @@ use super::{Cli, Failure};
 use crate::grammar::{self, RunOptions, StepStats};
 use crate::rules::lint::{self, Severity};
 use crate::rules::program::{Op, Step};
-use crate::rules::{self, schema, Override, Program};
+use crate::rules::{schema, Override, Program};
 
 /// `graftal schema`: the JSON Schema of rule files on standard output.
 pub fn schema() -> Result<(), Failure> {
@@ -28,7 +28,9 @@ pub fn lint(files: &[PathBuf], overrides: &[Override], allow: &[String]) -> Resu
     let mut warned_files = 0;
     let mut err = std::io::stderr().lock();
     for path in files {
-        let findings = match lint::lint_file(path, overrides) {
+        let findings = match super::files::read_rules(path)
+            .and_then(|file| lint::lint_source(&file, overrides, &super::files::base_dir(path)))
+        {
             Ok(f) => f,
             Err(e) => {
                 drop(err);
@@ -189,7 +191,7 @@ pub fn explain(
     max_primitives: usize,
     input: &super::InputArgs,
 ) -> Result<(), Failure> {
-    let program = rules::compile_file(rules_path, overrides)?;
+    let program = super::files::compile_rules(rules_path, overrides)?;
     let inputs = super::files::load_inputs(&program, input.policy())?;
     let options = RunOptions {
         seed,

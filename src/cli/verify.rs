@@ -92,7 +92,7 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
     let programs = args
         .rules
         .iter()
-        .map(|r| rules::compile_file(r, &args.overrides))
+        .map(|r| super::files::compile_rules(r, &args.overrides))
         .collect::<Result<Vec<_>, _>>()?;
 
     let mut report = String::new();

@@ -108,6 +108,19 @@ pub const DRAW_TURN: u64 = 3;
 pub const DRAW_PITCH: u64 = 4;
 pub const DRAW_ROLL: u64 = 5;
 
+/// Why a command could not be planned or applied on a primitive.
+#[derive(Debug, thiserror::Error)]
+pub enum CommandError {
+    #[error("relative `length` needs a preceding edge, but node {node} has no incoming edge")]
+    NoPrecedingEdge { node: usize },
+    #[error("{what} evaluates to {value}")]
+    NotFinite { what: &'static str, value: f64 },
+    #[error("the new node's position is not finite")]
+    Position,
+    #[error(transparent)]
+    Kernel(crate::kernel::KernelError),
+}
+
 /// Plans `command` on primitive `index`. `eval` evaluates a parameter on
 /// this primitive; `spread` gives its symmetric random draws.
 pub fn plan(
@@ -117,7 +130,7 @@ pub fn plan(
     reference: &Reference,
     eval: &mut dyn FnMut(&Condition) -> f64,
     spread: &dyn Fn(u64) -> f64,
-) -> Result<Plan, String> {
+) -> Result<Plan, CommandError> {
     let pre = preceding(mesh, command.kind, index);
     let (default_heading, default_length) = default_heading_and_length(command.kind);
     let mut vector = |v: &Option<Box<[Condition; 3]>>, default: DVec3| match v {
@@ -154,11 +167,7 @@ pub fn plan(
         let unit = match pre.length {
             Some(l) => l,
             None if length == 0.0 => 0.0,
-            None => {
-                return Err(format!(
-                "relative `length` needs a preceding edge, but node {index} has no incoming edge"
-            ))
-            }
+            None => return Err(CommandError::NoPrecedingEdge { node: index }),
         };
         (pre.frame, unit, pre.radius)
     } else {
@@ -182,11 +191,11 @@ pub fn plan(
         ("radius", radius.unwrap_or(0.0)),
     ] {
         if !x.is_finite() {
-            return Err(format!("{what} evaluates to {x}"));
+            return Err(CommandError::NotFinite { what, value: x });
         }
     }
     if !position.is_finite() {
-        return Err("the new node's position is not finite".to_owned());
+        return Err(CommandError::Position);
     }
     Ok(Plan {
         target: index,
@@ -201,7 +210,7 @@ pub fn plan(
             // loop on the edge starts at a.
             let mut faces: Vec<(FaceId, bool)> = mesh
                 .edge_loops(e)
-                .map(|l| (mesh.lp(l).face, mesh.lp(l).vert == a))
+                .map(|l| (mesh.loop_face(l), mesh.loop_vert(l) == a))
                 .collect();
             faces.sort_unstable();
             faces.first().is_some_and(|&(_, runs_a_to_b)| runs_a_to_b)
@@ -216,8 +225,8 @@ pub fn apply(
     kind: CommandKind,
     plan: &Plan,
     generation: i64,
-) -> Result<Selection, String> {
-    let e = |err: crate::kernel::KernelError| err.to_string();
+) -> Result<Selection, CommandError> {
+    let e = CommandError::Kernel;
     let mut made = Selection::new();
     match kind {
         CommandKind::CreateEdge => {
@@ -288,8 +297,8 @@ fn split_face(
     plan: &Plan,
     generation: i64,
     made: &mut Selection,
-) -> Result<(), String> {
-    let e = |err: crate::kernel::KernelError| err.to_string();
+) -> Result<(), CommandError> {
+    let e = CommandError::Kernel;
     let f = FaceId::from_index(plan.target);
     let ring: Vec<VertId> = mesh.face_verts(f).collect();
     let picked = &plan.nodes;

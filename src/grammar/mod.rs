@@ -10,17 +10,23 @@
 //!   against the model before an application is made.
 //! - [`scope`]: compound-command scopes and their reference frames.
 //! - [`properties`]: what conditions and parameters read.
-//! - `run`: the step loop, rules, compounds, statistics.
+//! - `operators`: the implementations of the registry's create, kernel
+//!   and whole-mesh operators (dispatch on [`OpId`](crate::rules::operators::OpId)).
+//! - `run`: the step loop, rules, compounds, statistics; `error`: its
+//!   typed errors ([`StepError`], [`RunError`]).
 
 pub mod commands;
+mod error;
 pub mod graph;
 pub mod intersect;
 pub mod merge;
+mod operators;
 mod properties;
 mod run;
 pub mod scope;
 
+pub use error::{RunError, RunErrorKind, StepError};
 pub use run::{
-    parameter_values, run, CreatedCounts, RunError, RunErrorKind, RunOptions, RunOutput, StepStats,
-    DEFAULT_MAX_ELEMENTS, DEFAULT_MAX_EVALUATIONS,
+    parameter_values, run, CreatedCounts, RunOptions, RunOutput, StepStats, DEFAULT_MAX_ELEMENTS,
+    DEFAULT_MAX_EVALUATIONS,
 };

@@ -9,23 +9,23 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use rustc_hash::FxHashMap;
-use thiserror::Error;
 
+use super::error::{RunError, StepError};
 use super::intersect::Guard;
 use super::merge::Merger;
+use super::operators;
 use crate::geom::IndexedMesh;
-use crate::kernel::ops::extrude::ExtrudeOffset;
-use crate::kernel::ops::{self, Selection};
+use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
 use crate::rules::expr::SlotSource;
 use crate::rules::program::{
-    Command, CommandKind, Compound, Condition, FrameParams, Offset, OnIntersection, Op, ParamKind,
-    Policy, Program, Step, Vector,
+    Call, Command, CommandKind, Compound, Condition, FrameParams, OnIntersection, Op, ParamKind,
+    Policy, Program, Step,
 };
 use crate::rules::random;
 
-use super::commands::{self, Plan};
+use super::commands::{self, CommandError, Plan};
 use super::graph::{self, Frame};
 use super::properties::{self, Context};
 use super::scope::{Measure, Reference, Scope};
@@ -131,37 +131,11 @@ pub struct RunOutput {
     pub steps: Vec<StepStats>,
 }
 
-/// Why a run failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RunErrorKind {
-    /// An operator or command could not be applied.
-    Failed,
-    /// The model outgrew `max_elements`.
-    TooLarge,
-    /// The run passed its deadline.
-    Timeout,
-    /// The run evaluated more expressions than `max_evaluations`.
-    EvaluationLimit,
-}
-
-/// A failure while running: which step, where it is written, and why.
-#[derive(Debug, Error)]
-#[error("{location}: step `{step}`: {message}")]
-pub struct RunError {
-    pub kind: RunErrorKind,
-    pub step: String,
-    pub location: String,
-    pub message: String,
-}
-
 /// `Runner::product_slot` of a step whose products no step reads.
 const NO_SLOT: u32 = u32::MAX;
 
 struct Runner<'p> {
     program: &'p Program,
-    /// Set by a kernel operator that applied to fewer elements than it was
-    /// given (`dissolve_edges` skips edges it cannot dissolve).
-    applied_override: std::cell::Cell<Option<usize>>,
     inputs: Arc<[Arc<IndexedMesh>]>,
     seed: u64,
     max_elements: usize,
@@ -236,7 +210,6 @@ impl<'p> Runner<'p> {
     fn new(program: &'p Program, options: &RunOptions) -> Self {
         let mut runner = Runner {
             program,
-            applied_override: std::cell::Cell::new(None),
             inputs: Arc::clone(&options.inputs),
             seed: options.seed.unwrap_or(program.default_seed),
             max_elements: options.max_elements,
@@ -315,13 +288,14 @@ impl Stop {
         match self {
             Stop::Fail(e) => e,
             Stop::Cancel(level, mut e) => {
-                let what = match level {
-                    CancelLevel::Compound => {
-                        "`cancel_compound`, but no compound application is running"
-                    }
-                    CancelLevel::Rule => "`cancel_rule`, but no rule application is running",
-                };
-                e.message = format!("{}; {what}", e.message);
+                if let StepError::Intersects { uncaught, .. } = &mut e.error {
+                    *uncaught = match level {
+                        CancelLevel::Compound => {
+                            "; `cancel_compound`, but no compound application is running"
+                        }
+                        CancelLevel::Rule => "; `cancel_rule`, but no rule application is running",
+                    };
+                }
                 e
             }
         }
@@ -334,12 +308,12 @@ struct Snapshot {
     applied: FxHashMap<(u32, u32, u32), Selection>,
 }
 
-fn step_error(step: &Step, kind: RunErrorKind, message: String) -> RunError {
+fn step_error(step: &Step, error: StepError) -> RunError {
     RunError {
-        kind,
+        kind: error.kind(),
         step: step.name.clone(),
         location: step.location.clone(),
-        message,
+        error,
     }
 }
 
@@ -370,11 +344,11 @@ impl Runner<'_> {
     fn evaluate_params(&mut self) -> Result<(), RunError> {
         let seed = self.seed;
         for p in &self.program.params {
-            let fail = |message: String| RunError {
-                kind: RunErrorKind::Failed,
+            let fail = |error: StepError| RunError {
+                kind: error.kind(),
                 step: format!("params.{}", p.name),
                 location: self.program.file.clone(),
-                message,
+                error,
             };
             let slots = &self.slots;
             let mut value = match &p.kind {
@@ -389,7 +363,7 @@ impl Runner<'_> {
                 ParamKind::Int { low, high } => {
                     let (lo, hi) = (libm::round(low.eval(slots)), libm::round(high.eval(slots)));
                     if !(lo.is_finite() && hi.is_finite()) || lo > hi {
-                        return Err(fail(format!("integer range [{lo}, {hi}] is empty")));
+                        return Err(fail(StepError::EmptyRange { low: lo, high: hi }));
                     }
                     random::int_in(seed, p.key, 0, 0, lo as i64, hi as i64) as f64
                 }
@@ -410,12 +384,15 @@ impl Runner<'_> {
             if let Some((lo, hi)) = &p.clamp {
                 let (lo, hi) = (lo.eval(slots), hi.eval(slots));
                 if lo > hi {
-                    return Err(fail(format!("clamp range [{lo}, {hi}] is empty")));
+                    return Err(fail(StepError::EmptyClamp { low: lo, high: hi }));
                 }
                 value = value.clamp(lo, hi);
             }
             if !value.is_finite() {
-                return Err(fail(format!("parameter `{}` evaluates to {value}", p.name)));
+                return Err(fail(StepError::NotFinite {
+                    name: p.name.clone(),
+                    value,
+                }));
             }
             self.slots[p.slot as usize] = value;
         }
@@ -501,13 +478,8 @@ impl Runner<'_> {
             scope.add(&made);
         }
         if self.validate_each_step {
-            mesh.validate().map_err(|e| {
-                step_error(
-                    step,
-                    RunErrorKind::Failed,
-                    format!("invalid mesh after the step: {e}"),
-                )
-            })?;
+            mesh.validate()
+                .map_err(|e| step_error(step, StepError::Invalid(e)))?;
         }
         self.check_size(mesh, step, 0)?;
         self.tally(step, &tally, &made, started);
@@ -560,13 +532,10 @@ impl Runner<'_> {
         generation: u32,
         tally: &mut Tally,
     ) -> Result<Selection, Stop> {
-        if step.op.is_create() {
-            self.merger.invalidate();
-            self.guard.invalidate();
-            self.admit_kernel_op(mesh, step, &[])?;
-            return Ok(self
-                .apply(mesh, step, &[])
-                .map_err(|m| step_error(step, RunErrorKind::Failed, m))?);
+        if let Op::Call(call) = &step.op {
+            if call.def.is_create() {
+                return Ok(self.run_call(mesh, step, call, &[])?.made);
+            }
         }
         let candidates = self.candidates(mesh, step);
         tally.candidates = candidates.len();
@@ -590,22 +559,48 @@ impl Runner<'_> {
                 tally.applied = matched.len();
                 self.run_compound(mesh, step, *index, frame, &matched, tally)
             }
-            _ => {
-                tally.applied = matched.len();
-                // A kernel operator may move, make or remove anything.
-                self.merger.invalidate();
-                self.guard.invalidate();
-                self.admit_kernel_op(mesh, step, &matched)?;
-                let made = self
-                    .apply(mesh, step, &matched)
-                    .map_err(|m| step_error(step, RunErrorKind::Failed, m))?;
+            Op::Call(call) => {
+                let done = self.run_call(mesh, step, call, &matched)?;
                 // An operator that applies to fewer than it was given says so.
-                if let Some(applied) = self.applied_override.take() {
-                    tally.applied = applied;
-                }
-                Ok(made)
+                tally.applied = done.applied.unwrap_or(matched.len());
+                Ok(done.made)
             }
         }
+    }
+
+    /// Runs a create, kernel or whole-mesh operator on `selected`, once the
+    /// primitive limit and the evaluation budget admit what it would make.
+    fn run_call(
+        &mut self,
+        mesh: &mut Mesh,
+        step: &Step,
+        call: &Call,
+        selected: &[usize],
+    ) -> Result<operators::Applied, RunError> {
+        // A kernel operator may move, make or remove anything.
+        self.merger.invalidate();
+        self.guard.invalidate();
+        let ctx = operators::Context {
+            slots: &self.slots,
+            resources: &self.program.resources,
+            inputs: &self.inputs,
+            domain: step.domain,
+        };
+        let growth = operators::predicted_growth(&ctx, mesh, call, selected);
+        // Kernel work counts against the evaluation budget: one unit per
+        // element the operator selects or creates.
+        self.evaluations = self
+            .evaluations
+            .saturating_add(selected.len() as u64)
+            .saturating_add(growth);
+        self.check_size(mesh, step, usize::try_from(growth).unwrap_or(usize::MAX))?;
+        let ctx = operators::Context {
+            slots: &self.slots,
+            resources: &self.program.resources,
+            inputs: &self.inputs,
+            domain: step.domain,
+        };
+        operators::apply(&ctx, mesh, call, selected).map_err(|e| step_error(step, e))
     }
 
     /// The run's bounds: the primitive count (with `coming` more on the
@@ -614,37 +609,29 @@ impl Runner<'_> {
         if self.evaluations > self.max_evaluations {
             return Err(step_error(
                 step,
-                RunErrorKind::EvaluationLimit,
-                format!(
-                    "{} expression evaluations, over the limit of {}; raise it with --max-evaluations if the work is intended",
-                    self.evaluations, self.max_evaluations
-                ),
+                StepError::Evaluations {
+                    count: self.evaluations,
+                    limit: self.max_evaluations,
+                },
             ));
         }
         if self.deadline.is_some_and(|d| Instant::now() > d) {
-            return Err(step_error(
-                step,
-                RunErrorKind::Timeout,
-                "the run passed its time limit (--timeout)".to_string(),
-            ));
+            return Err(step_error(step, StepError::Timeout));
         }
         let total = mesh.vert_count() + mesh.edge_count() + mesh.face_count();
         if total.saturating_add(coming) > self.max_elements {
-            let message = if coming == 0 {
-                format!(
-                    "the model has {total} primitives, over the limit of {}",
-                    self.max_elements
-                )
-            } else {
-                format!(
-                    "the model would grow past the limit of {} primitives (it has {total}, this step adds about {coming})",
-                    self.max_elements
-                )
-            };
+            let limit = self.max_elements;
             return Err(step_error(
                 step,
-                RunErrorKind::TooLarge,
-                format!("{message}; raise it with --max-primitives if the growth is intended"),
+                if coming == 0 {
+                    StepError::TooLarge { total, limit }
+                } else {
+                    StepError::WouldBeTooLarge {
+                        total,
+                        coming,
+                        limit,
+                    }
+                },
             ));
         }
         Ok(())
@@ -728,7 +715,16 @@ impl Runner<'_> {
         tally: &mut Tally,
     ) -> Result<Selection, Stop> {
         let generation = step.uid + 1;
-        let fail = |m: String| step_error(step, RunErrorKind::Failed, m);
+        let fail = |index: usize, error: CommandError| {
+            step_error(
+                step,
+                StepError::Command {
+                    domain: step.domain,
+                    index,
+                    error,
+                },
+            )
+        };
         let call = self.calls.last().copied();
         let reference = self.reference();
         let mut made = Selection::new();
@@ -744,10 +740,14 @@ impl Runner<'_> {
             if let Some(p) = &command.probability {
                 let p = self.eval(mesh, step, generation, i, step.domain, p);
                 if !(0.0..=1.0).contains(&p) {
-                    return Err(Stop::Fail(fail(format!(
-                        "probability evaluates to {p} for {} {i}; it must be in [0, 1]",
-                        step.domain
-                    ))));
+                    return Err(Stop::Fail(step_error(
+                        step,
+                        StepError::Probability {
+                            domain: step.domain,
+                            index: i,
+                            value: p,
+                        },
+                    )));
                 }
                 if random::unit(self.seed, step.key, i as u64, 0) >= p {
                     tally.skipped += 1;
@@ -760,7 +760,7 @@ impl Runner<'_> {
                 let mut eval = |c: &Condition| self.eval(mesh, step, generation, i, step.domain, c);
                 commands::plan(mesh, command, i, &reference, &mut eval, &spread)
             }
-            .map_err(|m| fail(format!("{} {i}: {m}", step.domain)))?;
+            .map_err(|e| fail(i, e))?;
             if command.kind == CommandKind::SplitFace {
                 let ring: Vec<VertId> = mesh.face_verts(FaceId::from_index(i)).collect();
                 plan.nodes = match &command.nodes {
@@ -802,13 +802,12 @@ impl Runner<'_> {
                 let error = || {
                     step_error(
                         step,
-                        RunErrorKind::Failed,
-                        format!(
-                            "applied to {} {}, `{}` would make a primitive that intersects the model",
-                            step.domain,
-                            plan.target,
-                            step.op.name()
-                        ),
+                        StepError::Intersects {
+                            domain: step.domain,
+                            index: plan.target,
+                            op: step.op.name(),
+                            uncaught: "",
+                        },
                     )
                 };
                 match reaction {
@@ -826,7 +825,7 @@ impl Runner<'_> {
                 }
             }
             let products = commands::apply(mesh, command.kind, plan, i64::from(generation))
-                .map_err(|m| fail(format!("{} {}: {m}", step.domain, plan.target)))?;
+                .map_err(|e| fail(plan.target, e))?;
             if testing {
                 self.guard.accept(mesh, &products);
             }
@@ -856,7 +855,7 @@ impl Runner<'_> {
                 tally.merged += self
                     .merger
                     .merge(mesh, &touched, tolerance, &mut made)
-                    .map_err(|e| fail(format!("merging: {e}")))?;
+                    .map_err(|e| step_error(step, StepError::Merging(e)))?;
                 self.guard.invalidate();
             }
             Policy::None => {
@@ -951,11 +950,11 @@ impl Runner<'_> {
             if !(reference.length.is_finite() && reference.radius.is_finite()) {
                 return Err(Stop::Fail(step_error(
                     step,
-                    RunErrorKind::Failed,
-                    format!(
-                        "compound `{}` on {} {i}: length or radius is not finite",
-                        compound.name, step.domain
-                    ),
+                    StepError::CompoundFrame {
+                        compound: compound.name.clone(),
+                        domain: step.domain,
+                        index: i,
+                    },
                 )));
             }
             scopes.push(Scope::new(mesh, step.domain, i, reference, measure));
@@ -1003,425 +1002,6 @@ impl Runner<'_> {
         made.normalize();
         Ok(made)
     }
-
-    fn scalar(&self, e: &crate::rules::expr::Expr) -> f64 {
-        e.eval(&self.slots)
-    }
-
-    fn vector(&self, v: &Vector) -> DVec3 {
-        DVec3::new(
-            self.scalar(&v.0[0]),
-            self.scalar(&v.0[1]),
-            self.scalar(&v.0[2]),
-        )
-    }
-
-    fn count(&self, e: &crate::rules::expr::Expr, what: &str) -> Result<u32, String> {
-        let x = libm::round(self.scalar(e));
-        if !(x.is_finite() && (0.0..=u32::MAX as f64).contains(&x)) {
-            return Err(format!("{what} must be a whole number ≥ 0, got {x}"));
-        }
-        Ok(x as u32)
-    }
-
-    fn offset(&self, o: &Offset) -> ExtrudeOffset {
-        match o {
-            Offset::None => ExtrudeOffset::None,
-            Offset::Vector(v) => ExtrudeOffset::Vector(self.vector(v)),
-            Offset::Normal(d) => ExtrudeOffset::Normal(self.scalar(d)),
-        }
-    }
-    /// At most how many primitives (vertices + edges + faces) the step's
-    /// kernel operator will create, from its parameters and selection, so
-    /// that the primitive limit refuses it before anything is allocated.
-    /// Saturating: a parameter too large to count predicts `u64::MAX`.
-    fn predicted_growth(&self, mesh: &Mesh, step: &Step, selected: &[usize]) -> u64 {
-        use ops::select;
-        let n = |e: &crate::rules::expr::Expr| -> u64 {
-            let x = libm::round(self.scalar(e));
-            if x.is_nan() || x <= 0.0 {
-                0
-            } else if x >= u64::MAX as f64 {
-                u64::MAX
-            } else {
-                x as u64
-            }
-        };
-        let by_domain = selection_of(step.domain, selected);
-        let full = || match step.domain {
-            Domain::Vert => select::select_from_verts(mesh, &by_domain.verts),
-            Domain::Edge => select::select_from_edges(mesh, &by_domain.edges),
-            Domain::Face => select::select_from_faces(mesh, &by_domain.faces),
-        };
-        let size = |s: &Selection| (s.verts.len() + s.edges.len() + s.faces.len()) as u64;
-        let edge_count = || match step.domain {
-            Domain::Face => select::select_from_faces(mesh, &by_domain.faces)
-                .edges
-                .len() as u64,
-            _ => by_domain.edges.len() as u64,
-        };
-        let vert_count = || match step.domain {
-            Domain::Vert => by_domain.verts.len() as u64,
-            _ => full().verts.len() as u64,
-        };
-        // Per face of n sides: n new vertices, 2n edges, n + 1 faces at most
-        // (extrude and inset, individually or as a region).
-        let rings = || -> u64 {
-            by_domain
-                .faces
-                .iter()
-                .map(|&f| 4 * mesh.face_len(f) as u64 + 1)
-                .fold(0, u64::saturating_add)
-        };
-        let m = u64::saturating_mul;
-        match &step.op {
-            Op::Vertex { .. } => 1,
-            Op::Circle { segments, .. } => m(n(segments), 2).saturating_add(1),
-            Op::Grid { segments, .. } => {
-                let (x, y) = (
-                    n(&segments[0]).saturating_add(1),
-                    n(&segments[1]).saturating_add(1),
-                );
-                m(m(x, y), 4)
-            }
-            Op::Cube { .. } => 26,
-            Op::UvSphere {
-                segments, rings, ..
-            } => m(m(n(segments), n(rings).saturating_add(1)), 3).saturating_add(2),
-            Op::Cylinder { segments, .. } => m(n(segments), 6).saturating_add(2),
-            Op::ExtrudeVerts { .. } => m(vert_count(), 2),
-            Op::ExtrudeEdges { .. } => m(edge_count(), 6),
-            Op::ExtrudeFaces { .. }
-            | Op::ExtrudeRegion { .. }
-            | Op::InsetFaces { .. }
-            | Op::InsetRegion { .. } => rings(),
-            Op::SplitEdgesCuts { cuts } => m(m(edge_count(), n(cuts)), 2),
-            Op::SplitEdgesRatios { ratios } => m(m(edge_count(), ratios.len() as u64), 2),
-            // n - 3 diagonals and n - 2 triangles for the one face removed.
-            Op::Triangulate => by_domain
-                .faces
-                .iter()
-                .map(|&f| 2 * (mesh.face_len(f) as u64).saturating_sub(3))
-                .fold(0, u64::saturating_add),
-            Op::Duplicate | Op::Mirror { .. } => size(&full()),
-            Op::MakeFace => 1,
-            Op::Skin { sides, joints, .. } => {
-                let s = n(sides);
-                let wires = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).count() as u64;
-                let tubes = m(wires, m(s, 6).saturating_add(2));
-                let spheres = if *joints {
-                    m(
-                        mesh.vert_count() as u64,
-                        m(m(s, (s / 2).max(2)), 3).saturating_add(2),
-                    )
-                } else {
-                    0
-                };
-                tubes.saturating_add(spheres)
-            }
-            Op::Import { .. }
-            | Op::Translate { .. }
-            | Op::Rotate { .. }
-            | Op::Scale { .. }
-            | Op::Reverse
-            | Op::RecomputeNormals { .. }
-            | Op::Delete { .. }
-            | Op::DissolveEdges
-            | Op::Merge { .. }
-            | Op::RegionExtend { .. }
-            | Op::RegionReduce { .. }
-            | Op::Command(_)
-            | Op::Compound { .. } => 0,
-        }
-    }
-
-    /// Refuses a kernel operator that would outgrow the primitive limit or
-    /// spend the evaluation budget (one unit per element it selects or
-    /// creates), before it allocates anything.
-    fn admit_kernel_op(
-        &mut self,
-        mesh: &Mesh,
-        step: &Step,
-        selected: &[usize],
-    ) -> Result<(), RunError> {
-        let growth = self.predicted_growth(mesh, step, selected);
-        self.evaluations = self
-            .evaluations
-            .saturating_add(selected.len() as u64)
-            .saturating_add(growth);
-        self.check_size(mesh, step, usize::try_from(growth).unwrap_or(usize::MAX))
-    }
-
-    fn apply(&self, mesh: &mut Mesh, step: &Step, selected: &[usize]) -> Result<Selection, String> {
-        use ops::{create, delete, extrude, faces, inset, merge, select, split, transform};
-        let by_domain = selection_of(step.domain, selected);
-        let verts = || -> Vec<VertId> {
-            match step.domain {
-                Domain::Vert => by_domain.verts.clone(),
-                Domain::Edge => select::select_from_edges(mesh, &by_domain.edges).verts,
-                Domain::Face => select::select_from_faces(mesh, &by_domain.faces).verts,
-            }
-        };
-        let edges = || -> Vec<EdgeId> {
-            match step.domain {
-                Domain::Face => select::select_from_faces(mesh, &by_domain.faces).edges,
-                _ => by_domain.edges.clone(),
-            }
-        };
-        let full_selection = || -> Selection {
-            match step.domain {
-                Domain::Vert => select::select_from_verts(mesh, &by_domain.verts),
-                Domain::Edge => select::select_from_edges(mesh, &by_domain.edges),
-                Domain::Face => select::select_from_faces(mesh, &by_domain.faces),
-            }
-        };
-        let moved = |vs: Vec<VertId>| Selection::from_parts(vs, Vec::new(), Vec::new());
-        let faces_list = &by_domain.faces;
-        let e = |err: ops::OpError| err.to_string();
-        Ok(match &step.op {
-            Op::Vertex { at, radius } => {
-                let made = create::create_vert(mesh, self.vector(at)).map_err(e)?;
-                if let Some(r) = radius {
-                    graph::ensure_layers(mesh);
-                    for &v in &made.verts {
-                        graph::set_radius(mesh, v, self.scalar(r));
-                    }
-                }
-                made
-            }
-            Op::Circle {
-                segments,
-                radius,
-                fill,
-            } => create::create_circle(
-                mesh,
-                self.count(segments, "segments")?,
-                self.scalar(radius),
-                *fill,
-            )
-            .map_err(e)?,
-            Op::Grid { segments, size } => create::create_grid(
-                mesh,
-                self.count(&segments[0], "segments")?,
-                self.count(&segments[1], "segments")?,
-                self.scalar(&size[0]),
-                self.scalar(&size[1]),
-            )
-            .map_err(e)?,
-            Op::Cube { size } => create::create_cube(mesh, self.scalar(size)).map_err(e)?,
-            Op::UvSphere {
-                segments,
-                rings,
-                radius,
-            } => create::create_uv_sphere(
-                mesh,
-                self.count(segments, "segments")?,
-                self.count(rings, "rings")?,
-                self.scalar(radius),
-            )
-            .map_err(e)?,
-            Op::Cylinder {
-                segments,
-                radius,
-                radius_top,
-                depth,
-                caps,
-            } => create::create_cylinder(
-                mesh,
-                self.count(segments, "segments")?,
-                self.scalar(radius),
-                self.scalar(radius_top),
-                self.scalar(depth),
-                *caps,
-            )
-            .map_err(e)?,
-            Op::Import {
-                resource,
-                weld,
-                y_up,
-            } => {
-                let source = &self.program.resources[*resource];
-                let loaded = self
-                    .inputs
-                    .get(*resource)
-                    .ok_or_else(|| format!("`{}` was not loaded before the run", source.written))?;
-                let mut indexed = match weld {
-                    Some(distance) => std::borrow::Cow::Owned(loaded.welded(*distance)),
-                    None => std::borrow::Cow::Borrowed(&**loaded),
-                };
-                if *y_up {
-                    indexed.to_mut().y_up_to_z_up();
-                }
-                // Built straight into the working mesh: no copy.
-                crate::kernel::build::append_indexed(mesh, &indexed)
-                    .map_err(|err| format!("{}: {err}", source.written))?
-            }
-            Op::Translate { offset } => {
-                let vs = verts();
-                transform::translate(mesh, &vs, self.vector(offset)).map_err(e)?;
-                moved(vs)
-            }
-            Op::Rotate {
-                angle_degrees,
-                axis,
-                center,
-            } => {
-                let vs = verts();
-                let angle = self.scalar(angle_degrees).to_radians();
-                transform::rotate(mesh, &vs, self.vector(center), self.vector(axis), angle)
-                    .map_err(e)?;
-                moved(vs)
-            }
-            Op::Scale { factor, center } => {
-                let vs = verts();
-                transform::scale(mesh, &vs, self.vector(center), self.vector(factor)).map_err(e)?;
-                moved(vs)
-            }
-            Op::ExtrudeVerts { offset } => {
-                let vs = verts();
-                extrude::extrude_verts(mesh, &vs, self.offset(offset)).map_err(e)?
-            }
-            Op::ExtrudeEdges { offset } => {
-                let es = edges();
-                extrude::extrude_edges(mesh, &es, self.offset(offset)).map_err(e)?
-            }
-            Op::ExtrudeFaces {
-                keep_original,
-                offset,
-            } => extrude::extrude_faces(mesh, faces_list, *keep_original, self.offset(offset))
-                .map_err(e)?,
-            Op::ExtrudeRegion {
-                keep_original,
-                offset,
-            } => {
-                extrude::extrude_face_region(mesh, faces_list, *keep_original, self.offset(offset))
-                    .map_err(e)?
-            }
-            Op::InsetFaces { thickness, depth } => {
-                inset::inset_faces(mesh, faces_list, self.scalar(thickness), self.scalar(depth))
-                    .map_err(e)?
-            }
-            Op::InsetRegion { thickness, depth } => {
-                inset::inset_region(mesh, faces_list, self.scalar(thickness), self.scalar(depth))
-                    .map_err(e)?
-            }
-            Op::SplitEdgesCuts { cuts } => {
-                let es = edges();
-                split::split_edges(mesh, &es, self.count(cuts, "cuts")?).map_err(e)?
-            }
-            Op::SplitEdgesRatios { ratios } => {
-                let es = edges();
-                let r: Vec<f64> = ratios.iter().map(|x| self.scalar(x)).collect();
-                split::split_edges_at(mesh, &es, &r).map_err(e)?
-            }
-            Op::Triangulate => faces::triangulate(mesh, faces_list).map_err(e)?,
-            Op::Reverse => {
-                faces::reverse_faces(mesh, faces_list).map_err(e)?;
-                Selection::from_parts(Vec::new(), Vec::new(), faces_list.clone())
-            }
-            Op::RecomputeNormals { outside } => {
-                faces::recompute_normals(mesh, faces_list, *outside).map_err(e)?;
-                Selection::from_parts(Vec::new(), Vec::new(), faces_list.clone())
-            }
-            Op::Delete { mode } => {
-                let s = match step.domain {
-                    Domain::Face => by_domain.clone(),
-                    _ => full_selection(),
-                };
-                delete::delete(mesh, &s, *mode).map_err(e)?
-            }
-            Op::Duplicate => {
-                let s = full_selection();
-                delete::duplicate(mesh, &s).map_err(e)?
-            }
-            Op::DissolveEdges => {
-                let es = edges();
-                let report = delete::dissolve_edges_report(mesh, &es).map_err(e)?;
-                self.applied_override.set(Some(report.dissolved));
-                Selection::from_parts(Vec::new(), Vec::new(), report.faces)
-            }
-            Op::MakeFace => {
-                let es = edges();
-                faces::make_face_from_edges(mesh, &es).map_err(e)?
-            }
-            Op::Merge { distance } => {
-                let vs = verts();
-                let r = merge::merge_by_distance(mesh, &vs, self.scalar(distance)).map_err(e)?;
-                moved(r.survivors)
-            }
-            Op::Mirror {
-                point,
-                normal,
-                merge_distance,
-            } => {
-                let s = full_selection();
-                merge::mirror(
-                    mesh,
-                    &s,
-                    self.vector(point),
-                    self.vector(normal),
-                    self.scalar(merge_distance),
-                )
-                .map_err(e)?
-            }
-            Op::RegionExtend { by } => Selection::from_parts(
-                Vec::new(),
-                Vec::new(),
-                select::region_extend(mesh, faces_list, *by),
-            ),
-            Op::RegionReduce { by } => Selection::from_parts(
-                Vec::new(),
-                Vec::new(),
-                select::region_reduce(mesh, faces_list, *by),
-            ),
-            Op::Skin {
-                sides,
-                radius,
-                joints,
-                keep_wires,
-            } => {
-                let options = ops::skin::SkinOptions {
-                    sides: self.count(sides, "sides")?,
-                    default_radius: self.scalar(radius),
-                    joints: *joints,
-                };
-                let tubes = ops::skin::skin_wire_edges(mesh, &options).map_err(e)?;
-                if !*keep_wires {
-                    let wires: Vec<EdgeId> =
-                        mesh.edge_ids().filter(|&w| mesh.is_wire_edge(w)).collect();
-                    let mut nodes: Vec<VertId> =
-                        wires.iter().flat_map(|&w| mesh.edge_verts(w)).collect();
-                    let wire_selection = Selection::from_parts(Vec::new(), wires, Vec::new());
-                    delete::delete(mesh, &wire_selection, delete::DeleteMode::All).map_err(e)?;
-                    // The skeleton's nodes go with its wires, unless a face still uses them.
-                    nodes.sort_unstable();
-                    nodes.dedup();
-                    nodes.retain(|&v| mesh.vert_edges(v).next().is_none());
-                    let loose = Selection::from_parts(nodes, Vec::new(), Vec::new());
-                    delete::delete(mesh, &loose, delete::DeleteMode::All).map_err(e)?;
-                }
-                let map = mesh.join_mesh(&tubes);
-                Selection::from_parts(
-                    map.verts.into_iter().flatten().collect(),
-                    map.edges.into_iter().flatten().collect(),
-                    map.faces.into_iter().flatten().collect(),
-                )
-            }
-            Op::Command(_) | Op::Compound { .. } => {
-                unreachable!("commands and compounds run in run_step")
-            }
-        })
-    }
-}
-
-fn selection_of(domain: Domain, indices: &[usize]) -> Selection {
-    let mut s = Selection::new();
-    match domain {
-        Domain::Vert => s.verts = indices.iter().map(|&i| VertId::from_index(i)).collect(),
-        Domain::Edge => s.edges = indices.iter().map(|&i| EdgeId::from_index(i)).collect(),
-        Domain::Face => s.faces = indices.iter().map(|&i| FaceId::from_index(i)).collect(),
-    }
-    s
 }
 
 /// Slot values for a condition: parameters as given, element properties

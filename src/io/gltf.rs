@@ -1740,40 +1740,37 @@ mod tests {
     }
 
     #[test]
-    fn external_buffers_relative_to_the_file() {
-        let dir = tempfile::tempdir().unwrap();
+    fn external_buffers_come_through_the_resolver() {
         let mesh = test_meshes::cube_with_wire();
         let glb = encode_glb(&mesh).unwrap();
         let (json_bytes, bin) = split_glb(&glb, p()).unwrap();
+        let bin = bin.unwrap().to_vec();
         let mut v: serde_json::Value = serde_json::from_slice(json_bytes).unwrap();
         v["buffers"][0]["uri"] = "my%20data.bin".into();
-        let path = dir.path().join("model.gltf");
-        std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
-        let read = |path: &Path| {
-            let bytes = std::fs::read(path).unwrap();
-            let dir = path.parent().unwrap().to_path_buf();
-            decode_with(&bytes, path, &mut |uri: &str, max: u64| {
-                let mut data = std::fs::read(dir.join(uri)).map_err(|e| e.to_string())?;
-                data.truncate(max as usize);
-                Ok(data)
+        let gltf = serde_json::to_vec(&v).unwrap();
+        let path = Path::new("model.gltf");
+        // The resolver is given the percent-decoded URI and the byteLength.
+        let read = |stored: Option<&[u8]>| {
+            decode_with(&gltf, path, &mut |uri: &str, max: u64| {
+                assert_eq!(uri, "my data.bin");
+                let data = stored.ok_or("no such file")?;
+                Ok(data[..data.len().min(max as usize)].to_vec())
             })
         };
-        let e = read(&path).unwrap_err().to_string();
+        let e = read(None).unwrap_err().to_string();
         assert!(
-            e.contains("buffer 0: cannot read external file") && e.contains("my data.bin"),
+            e.contains("buffer 0: cannot read external file my data.bin: no such file"),
             "{e}"
         );
         // Without a resolver, external files are refused.
-        let e = decode(&std::fs::read(&path).unwrap(), &path)
-            .unwrap_err()
-            .to_string();
+        let e = decode(&gltf, path).unwrap_err().to_string();
         assert!(e.contains("not available"), "{e}");
-        std::fs::write(dir.path().join("my data.bin"), bin.unwrap()).unwrap();
-        let back = read(&path).unwrap();
-        assert_eq!(back.polygon_count(), 12);
-        // A short external file is reported.
-        std::fs::write(dir.path().join("my data.bin"), [0u8; 10]).unwrap();
-        let e = read(&path).unwrap_err().to_string();
+        assert_eq!(read(Some(&bin)).unwrap().polygon_count(), 12);
+        // A longer file is cut at byteLength; a shorter one is reported.
+        let mut longer = bin.clone();
+        longer.extend([0u8; 64]);
+        assert_eq!(read(Some(&longer)).unwrap().polygon_count(), 12);
+        let e = read(Some(&[0u8; 10])).unwrap_err().to_string();
         assert!(
             e.contains("buffer 0 has 10 bytes but declares byteLength"),
             "{e}"

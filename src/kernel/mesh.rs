@@ -21,58 +21,58 @@ use crate::geom::polygon;
 
 #[derive(Clone, Debug)]
 pub(crate) struct Vert {
-    pub(crate) position: DVec3,
+    pub(in crate::kernel) position: DVec3,
     /// Any edge of the disk cycle; `None` for an isolated vertex.
-    pub(crate) edge: Option<EdgeId>,
+    pub(in crate::kernel) edge: Option<EdgeId>,
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub(crate) struct DiskLink {
-    pub(crate) prev: EdgeId,
-    pub(crate) next: EdgeId,
+    pub(in crate::kernel) prev: EdgeId,
+    pub(in crate::kernel) next: EdgeId,
 }
 
 #[derive(Clone, Debug)]
 pub(crate) struct Edge {
-    pub(crate) verts: [VertId; 2],
+    pub(in crate::kernel) verts: [VertId; 2],
     /// `disk[i]` links this edge into the disk cycle of `verts[i]`.
-    pub(crate) disk: [DiskLink; 2],
+    pub(in crate::kernel) disk: [DiskLink; 2],
     /// Any loop of the radial cycle; `None` for a wire edge.
-    pub(crate) first_loop: Option<LoopId>,
+    pub(in crate::kernel) first_loop: Option<LoopId>,
 }
 
 #[derive(Clone, Debug)]
 pub(crate) struct Loop {
-    pub(crate) vert: VertId,
-    pub(crate) edge: EdgeId,
-    pub(crate) face: FaceId,
-    pub(crate) next: LoopId,
-    pub(crate) prev: LoopId,
-    pub(crate) radial_next: LoopId,
-    pub(crate) radial_prev: LoopId,
+    pub(in crate::kernel) vert: VertId,
+    pub(in crate::kernel) edge: EdgeId,
+    pub(in crate::kernel) face: FaceId,
+    pub(in crate::kernel) next: LoopId,
+    pub(in crate::kernel) prev: LoopId,
+    pub(in crate::kernel) radial_next: LoopId,
+    pub(in crate::kernel) radial_prev: LoopId,
 }
 
 #[derive(Clone, Debug)]
 pub(crate) struct Face {
-    pub(crate) first_loop: LoopId,
-    pub(crate) len: u32,
-    pub(crate) normal: DVec3,
+    pub(in crate::kernel) first_loop: LoopId,
+    pub(in crate::kernel) len: u32,
+    pub(in crate::kernel) normal: DVec3,
 }
 
 /// A non-manifold polygon mesh: vertices, edges, loops and faces.
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
-    pub(crate) verts: Arena<Vert>,
-    pub(crate) edges: Arena<Edge>,
-    pub(crate) loops: Arena<Loop>,
-    pub(crate) faces: Arena<Face>,
-    pub(crate) attributes: Attributes,
+    pub(in crate::kernel) verts: Arena<Vert>,
+    pub(in crate::kernel) edges: Arena<Edge>,
+    pub(in crate::kernel) loops: Arena<Loop>,
+    pub(in crate::kernel) faces: Arena<Face>,
+    pub(in crate::kernel) attributes: Attributes,
 }
 
 impl Edge {
     /// Which end (0 or 1) of the edge `v` is. Callers guarantee `v` is an end.
     #[inline]
-    pub(crate) fn side(&self, v: VertId) -> usize {
+    pub(in crate::kernel) fn side(&self, v: VertId) -> usize {
         debug_assert!(self.verts.contains(&v));
         usize::from(self.verts[0] != v)
     }
@@ -136,19 +136,19 @@ impl Mesh {
     // ---- internal accessors (panic on dead ids: callers check first) ----
 
     #[inline]
-    pub(crate) fn vert(&self, v: VertId) -> &Vert {
+    pub(in crate::kernel) fn vert(&self, v: VertId) -> &Vert {
         self.verts.get(v.0).expect("dead vertex id")
     }
     #[inline]
-    pub(crate) fn edge(&self, e: EdgeId) -> &Edge {
+    pub(in crate::kernel) fn edge(&self, e: EdgeId) -> &Edge {
         self.edges.get(e.0).expect("dead edge id")
     }
     #[inline]
-    pub(crate) fn lp(&self, l: LoopId) -> &Loop {
+    pub(in crate::kernel) fn lp(&self, l: LoopId) -> &Loop {
         self.loops.get(l.0).expect("dead loop id")
     }
     #[inline]
-    pub(crate) fn face(&self, f: FaceId) -> &Face {
+    pub(in crate::kernel) fn face(&self, f: FaceId) -> &Face {
         self.faces.get(f.0).expect("dead face id")
     }
 
@@ -283,6 +283,16 @@ impl Mesh {
                 .filter(move |&l| self.lp(l).vert == v)
                 .map(move |l| self.lp(l).face)
         })
+    }
+
+    /// The face a loop belongs to.
+    pub fn loop_face(&self, l: LoopId) -> FaceId {
+        self.lp(l).face
+    }
+
+    /// The vertex a loop starts at (its face runs from it along the loop's edge).
+    pub fn loop_vert(&self, l: LoopId) -> VertId {
+        self.lp(l).vert
     }
 
     /// Loops around an edge (its radial cycle).

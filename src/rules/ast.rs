@@ -415,8 +415,8 @@ pub struct Step {
     pub from: Option<Spanned<String>>,
     /// Element kind to select, when the operator accepts several.
     pub on: Option<Spanned<DomainName>>,
-    /// The operator and its key (`None` when the step names none).
-    pub op: Option<(Spanned<String>, Spanned<Operation>)>,
+    /// The operator's key and arguments (`None` when the step names none).
+    pub op: Option<(Spanned<String>, Spanned<Args>)>,
     /// Include a named rule's steps here instead of an operator.
     pub rule: Option<Spanned<String>>,
     /// Apply a compound command instead of an operator.
@@ -434,96 +434,7 @@ pub struct Step {
     pub stray_keys: Vec<Spanned<String>>,
 }
 
-/// Every operator a step can run. The key in the file is the snake_case name.
-// Built once per step: variant sizes do not matter, boxing would only add noise.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq)]
-pub enum Operation {
-    Vertex(VertexOp),
-    Circle(CircleOp),
-    Grid(GridOp),
-    Cube(CubeOp),
-    UvSphere(UvSphereOp),
-    Cylinder(CylinderOp),
-    Cone(ConeOp),
-    Import(ImportOp),
-    Translate(TranslateOp),
-    Rotate(RotateOp),
-    Scale(ScaleOp),
-    ExtrudeVerts(ExtrudeOp),
-    ExtrudeEdges(ExtrudeOp),
-    ExtrudeFaces(ExtrudeOp),
-    ExtrudeRegion(ExtrudeOp),
-    InsetFaces(InsetOp),
-    InsetRegion(InsetOp),
-    SplitEdges(SplitEdgesOp),
-    Triangulate(Empty),
-    Reverse(Empty),
-    RecomputeNormals(NormalsOp),
-    Delete(DeleteOp),
-    Duplicate(Empty),
-    DissolveEdges(Empty),
-    MakeFace(Empty),
-    Merge(MergeOp),
-    Mirror(MirrorOp),
-    RegionExtend(RegionOp),
-    RegionReduce(RegionOp),
-    CreateEdge(CommandOp),
-    SplitEdge(CommandOp),
-    CreateFace(CommandOp),
-    SplitFace(CommandOp),
-    EditNode(CommandOp),
-    Skin(SkinOp),
-}
-
-/// Operator keys, for "unknown operator" messages and the documentation.
-pub const OPERATOR_NAMES: &[&str] = &[
-    "vertex",
-    "circle",
-    "grid",
-    "cube",
-    "uv_sphere",
-    "cylinder",
-    "cone",
-    "import",
-    "translate",
-    "rotate",
-    "scale",
-    "extrude_verts",
-    "extrude_edges",
-    "extrude_faces",
-    "extrude_region",
-    "inset_faces",
-    "inset_region",
-    "split_edges",
-    "triangulate",
-    "reverse",
-    "recompute_normals",
-    "delete",
-    "duplicate",
-    "dissolve_edges",
-    "make_face",
-    "merge",
-    "mirror",
-    "region_extend",
-    "region_reduce",
-    "create_edge",
-    "split_edge",
-    "create_face",
-    "split_face",
-    "edit_node",
-    "skin",
-];
-
-/// The G³ commands among the operators (thesis 003 §2.4.5).
-pub const COMMAND_NAMES: &[&str] = &[
-    "create_edge",
-    "split_edge",
-    "create_face",
-    "split_face",
-    "edit_node",
-];
-
+/// The keys a step may hold besides its operator.
 pub const STEP_KEYS: &[&str] = &[
     "name",
     "select",
@@ -536,221 +447,115 @@ pub const STEP_KEYS: &[&str] = &[
     "tolerance",
 ];
 
-/// Parameters of a G³ command (thesis 003 §2.4.3): every value may be an
-/// expression over parameters and the matched primitive's properties.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CommandOp {
-    pub length: Option<Value>,
-    pub radius: Option<Value>,
-    /// Heading H of the new edge, in the basis of the reference frame.
-    pub heading: Option<Vector>,
-    /// Up U, completing the frame (L = U × H).
-    pub up: Option<Vector>,
-    /// Fixed turtle rotations, degrees: about U, about L, about H.
-    pub turn: Option<Value>,
-    pub pitch: Option<Value>,
-    pub roll: Option<Value>,
-    /// Variations σ: uniform in (−σ, σ) added per primitive.
-    pub vary_length: Option<Value>,
-    pub vary_radius: Option<Value>,
-    pub vary_turn: Option<Value>,
-    pub vary_pitch: Option<Value>,
-    pub vary_roll: Option<Value>,
-    /// Chance of applying to each matched primitive.
-    pub probability: Option<Value>,
-    /// Relative to the preceding primitive instead of the reference frame.
-    pub relative: Option<bool>,
-    /// `split_face` only: secondary condition choosing the face's nodes.
-    pub nodes: Option<Spanned<String>>,
+/// An operator's arguments as written: its table's keys and values in
+/// file order. What each key may hold is the registry's business
+/// ([`super::operators`]); the compiler checks them against it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Args(pub Vec<(Spanned<String>, Spanned<ArgValue>)>);
+
+impl Args {
+    /// The entry for `key`, if written.
+    pub fn get(&self, key: &str) -> Option<&(Spanned<String>, Spanned<ArgValue>)> {
+        self.0.iter().find(|(k, _)| k.value == key)
+    }
 }
 
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SkinOp {
-    /// Sides of the tube cross-section.
-    pub sides: Option<Value>,
-    /// Radius for nodes without one.
-    pub radius: Option<Value>,
-    /// Spheres at joints (true).
-    pub joints: Option<bool>,
-    /// Keep the wire edges next to the tubes (false).
-    pub keep_wires: Option<bool>,
+/// One value of an operator's table.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ArgValue {
+    Number(f64),
+    /// A string: an expression, a name or a path, by the parameter's kind.
+    Text(String),
+    Bool(bool),
+    /// A bare name (RON writes choices as `faces`, TOML as `"faces"`).
+    Name(String),
+    List(Vec<Spanned<ArgValue>>),
+    Table(Args),
 }
 
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Empty {}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct VertexOp {
-    pub at: Option<Vector>,
-    /// Node radius (the `radius` layer).
-    pub radius: Option<Value>,
+impl ArgValue {
+    /// What the value is, for messages.
+    pub fn describe(&self) -> &'static str {
+        match self {
+            ArgValue::Number(_) => "a number",
+            ArgValue::Text(_) => "a string",
+            ArgValue::Bool(_) => "a boolean",
+            ArgValue::Name(_) => "a name",
+            ArgValue::List(_) => "a list",
+            ArgValue::Table(_) => "a table",
+        }
+    }
 }
 
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CircleOp {
-    pub segments: Option<Value>,
-    pub radius: Option<Value>,
-    pub fill: Option<bool>,
+impl<'de> Deserialize<'de> for Args {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct ArgsVisitor;
+        impl<'de> Visitor<'de> for ArgsVisitor {
+            type Value = Args;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a table of the operator's parameters, such as { size = 2 }")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Args, A::Error> {
+                let mut out = Vec::new();
+                while let Some(key) = map.next_key::<Spanned<String>>()? {
+                    out.push((key, map.next_value()?));
+                }
+                Ok(Args(out))
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<Args, E> {
+                Ok(Args::default())
+            }
+        }
+        // A struct to RON (`(size: 2)`, `()`), a table to TOML.
+        d.deserialize_struct("Args", &[], ArgsVisitor)
+    }
 }
 
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GridOp {
-    pub segments: Option<Pair>,
-    pub size: Option<Pair>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CubeOp {
-    pub size: Option<Value>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct UvSphereOp {
-    pub segments: Option<Value>,
-    pub rings: Option<Value>,
-    pub radius: Option<Value>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CylinderOp {
-    pub segments: Option<Value>,
-    pub radius: Option<Value>,
-    pub radius_top: Option<Value>,
-    pub depth: Option<Value>,
-    pub caps: Option<bool>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ConeOp {
-    pub segments: Option<Value>,
-    pub radius: Option<Value>,
-    pub depth: Option<Value>,
-    pub caps: Option<bool>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ImportOp {
-    /// Mesh file (OBJ, STL, PLY, glTF, GLB), relative to the rule file.
-    pub path: Spanned<String>,
-    /// Merge vertices at most this far apart (0: identical positions).
-    pub weld: Option<Spanned<f64>>,
-    /// The file's up axis (OBJ, PLY and STL; glTF is always Y-up).
-    pub up: Option<AxisName>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TranslateOp {
-    pub offset: Vector,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RotateOp {
-    /// Degrees, counter-clockwise about `axis` (right-handed).
-    pub angle: Value,
-    pub axis: Option<Vector>,
-    pub center: Option<Vector>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ScaleOp {
-    pub factor: Vector,
-    pub center: Option<Vector>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ExtrudeOp {
-    pub keep_original: Option<bool>,
-    /// Move the extruded copy by this vector.
-    pub offset: Option<Vector>,
-    /// Or move it this far along the normal.
-    pub distance: Option<Value>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct InsetOp {
-    pub thickness: Value,
-    pub depth: Option<Value>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SplitEdgesOp {
-    pub cuts: Option<Value>,
-    pub ratios: Option<Vec<Value>>,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NormalsOp {
-    pub outside: Option<bool>,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DeleteModeName {
-    All,
-    Faces,
-    FacesAndEdges,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DeleteOp {
-    pub mode: Option<DeleteModeName>,
-}
-
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MergeOp {
-    pub distance: Value,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum AxisName {
-    X,
-    Y,
-    Z,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MirrorOp {
-    /// Mirror across the plane through `point` perpendicular to this axis…
-    pub axis: Option<AxisName>,
-    /// …or to this normal.
-    pub normal: Option<Vector>,
-    pub point: Option<Vector>,
-    pub merge_distance: Option<Value>,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum AdjacencyName {
-    Edge,
-    Vert,
-}
-
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RegionOp {
-    pub by: Option<AdjacencyName>,
+impl<'de> Deserialize<'de> for ArgValue {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct ValueVisitor;
+        impl<'de> Visitor<'de> for ValueVisitor {
+            type Value = ArgValue;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number, a string, a boolean, a list or a table")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<ArgValue, E> {
+                Ok(ArgValue::Number(v))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<ArgValue, E> {
+                Ok(ArgValue::Number(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<ArgValue, E> {
+                Ok(ArgValue::Number(v as f64))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<ArgValue, E> {
+                Ok(ArgValue::Text(v.to_owned()))
+            }
+            fn visit_bool<E: de::Error>(self, v: bool) -> Result<ArgValue, E> {
+                Ok(ArgValue::Bool(v))
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<ArgValue, E> {
+                Ok(ArgValue::Table(Args::default()))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<ArgValue, A::Error> {
+                let mut items = Vec::new();
+                while let Some(item) = seq.next_element::<Spanned<ArgValue>>()? {
+                    items.push(item);
+                }
+                Ok(ArgValue::List(items))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<ArgValue, A::Error> {
+                Args::deserialize(de::value::MapAccessDeserializer::new(map)).map(ArgValue::Table)
+            }
+            fn visit_enum<A: de::EnumAccess<'de>>(self, data: A) -> Result<ArgValue, A::Error> {
+                use de::VariantAccess;
+                let (name, variant) = data.variant::<String>()?;
+                variant.unit_variant()?;
+                Ok(ArgValue::Name(name))
+            }
+        }
+        d.deserialize_any(ValueVisitor)
+    }
 }
 
 impl<'de> Deserialize<'de> for Step {
@@ -822,62 +627,23 @@ impl<'de> Deserialize<'de> for UnspannedStep {
 fn next_operation<'de, A: MapAccess<'de>>(
     map: &mut A,
     key: &str,
-) -> Result<Option<Spanned<Operation>>, A::Error> {
-    macro_rules! op {
-        ($variant:ident, $ty:ty) => {{
-            let v: Spanned<$ty> = map.next_value()?;
-            Spanned {
-                value: Operation::$variant(v.value),
-                span: v.span,
-            }
-        }};
+) -> Result<Option<Spanned<Args>>, A::Error> {
+    if super::operators::find(key).is_none() {
+        map.next_value::<de::IgnoredAny>()?;
+        return Ok(None);
     }
-    Ok(Some(match key {
-        "vertex" => op!(Vertex, VertexOp),
-        "circle" => op!(Circle, CircleOp),
-        "grid" => op!(Grid, GridOp),
-        "cube" => op!(Cube, CubeOp),
-        "uv_sphere" => op!(UvSphere, UvSphereOp),
-        "cylinder" => op!(Cylinder, CylinderOp),
-        "cone" => op!(Cone, ConeOp),
-        "import" => op!(Import, ImportOp),
-        "translate" => op!(Translate, TranslateOp),
-        "rotate" => op!(Rotate, RotateOp),
-        "scale" => op!(Scale, ScaleOp),
-        "extrude_verts" => op!(ExtrudeVerts, ExtrudeOp),
-        "extrude_edges" => op!(ExtrudeEdges, ExtrudeOp),
-        "extrude_faces" => op!(ExtrudeFaces, ExtrudeOp),
-        "extrude_region" => op!(ExtrudeRegion, ExtrudeOp),
-        "inset_faces" => op!(InsetFaces, InsetOp),
-        "inset_region" => op!(InsetRegion, InsetOp),
-        "split_edges" => op!(SplitEdges, SplitEdgesOp),
-        "triangulate" => op!(Triangulate, Empty),
-        "reverse" => op!(Reverse, Empty),
-        "recompute_normals" => op!(RecomputeNormals, NormalsOp),
-        "delete" => op!(Delete, DeleteOp),
-        "duplicate" => op!(Duplicate, Empty),
-        "dissolve_edges" => op!(DissolveEdges, Empty),
-        "make_face" => op!(MakeFace, Empty),
-        "merge" => op!(Merge, MergeOp),
-        "mirror" => op!(Mirror, MirrorOp),
-        "region_extend" => op!(RegionExtend, RegionOp),
-        "region_reduce" => op!(RegionReduce, RegionOp),
-        "create_edge" => op!(CreateEdge, CommandOp),
-        "split_edge" => op!(SplitEdge, CommandOp),
-        "create_face" => op!(CreateFace, CommandOp),
-        "split_face" => op!(SplitFace, CommandOp),
-        "edit_node" => op!(EditNode, CommandOp),
-        "skin" => op!(Skin, SkinOp),
-        _ => {
-            map.next_value::<de::IgnoredAny>()?;
-            return Ok(None);
-        }
-    }))
+    map.next_value().map(Some)
 }
 
 /// Every key a step may hold, for `deserialize_struct` (RON needs the list).
 fn step_fields() -> &'static [&'static str] {
     use std::sync::OnceLock;
     static FIELDS: OnceLock<Vec<&'static str>> = OnceLock::new();
-    FIELDS.get_or_init(|| STEP_KEYS.iter().chain(OPERATOR_NAMES).copied().collect())
+    FIELDS.get_or_init(|| {
+        STEP_KEYS
+            .iter()
+            .copied()
+            .chain(super::operators::names())
+            .collect()
+    })
 }

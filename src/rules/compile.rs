@@ -8,15 +8,14 @@ use std::sync::Arc;
 
 use rustc_hash::FxHashMap;
 
-use crate::kernel::ops::delete::DeleteMode;
-use crate::kernel::ops::select::Adjacency;
 use crate::kernel::Domain;
 
-use super::ast::{self, DomainName, Operation, ParamSpec, RuleFile, Scalar as AstScalar};
+use super::ast::{self, ArgValue, DomainName, ParamSpec, RuleFile, Scalar as AstScalar};
 use super::diagnostic::{content_span, RuleError, SourceFile};
 use super::expr::{Expr, ExprError, BUILTIN_CONSTANT_NAMES};
+use super::operators::{self, ArgKind, Default, Family, OpId, OperatorDef, ParamDef};
 use super::program::{
-    Command, CommandKind, Compound, Condition, FrameParams, Offset, OnIntersection, Op, Param,
+    Arg, Call, Command, CommandKind, Compound, Condition, FrameParams, OnIntersection, Op, Param,
     ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
 };
 use super::random::stream_key;
@@ -46,22 +45,6 @@ impl Override {
     }
 }
 
-/// Reads a rule file's text.
-pub fn load_text(path: &Path) -> Result<SourceFile, RuleError> {
-    let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|err| {
-        RuleError::at(
-            &SourceFile {
-                name: name.clone(),
-                text: String::new(),
-            },
-            None,
-            format!("cannot read rule file: {err}"),
-        )
-    })?;
-    source_from_bytes(name, bytes)
-}
-
 /// A rule file's text from its bytes; bytes that are not UTF-8 are an
 /// error located at the first bad byte.
 pub fn source_from_bytes(name: String, bytes: Vec<u8>) -> Result<SourceFile, RuleError> {
@@ -86,14 +69,10 @@ pub fn source_from_bytes(name: String, bytes: Vec<u8>) -> Result<SourceFile, Rul
     }
 }
 
-/// Reads and parses a rule file (format chosen by extension).
-pub fn load(path: &Path) -> Result<(SourceFile, RuleFile), RuleError> {
-    let file = load_text(path)?;
-    let ast = parse(
-        &file,
-        format_of(path).map_err(|m| RuleError::at(&file, None, m))?,
-    )?;
-    Ok((file, ast))
+/// Parses a rule file's text, in the format its name's extension says.
+pub fn load(file: &SourceFile) -> Result<RuleFile, RuleError> {
+    let format = format_of(Path::new(&file.name)).map_err(|m| RuleError::at(file, None, m))?;
+    parse(file, format)
 }
 
 /// The rule format for a path's extension.
@@ -314,13 +293,6 @@ impl<'a> Compiler<'a> {
         Ok(Expr::compile(&format!("{x:?}"), &|_: &str| None).expect("a finite literal compiles"))
     }
 
-    fn opt_scalar(&self, value: &Option<ast::Value>, default: f64) -> Result<Scalar, RuleError> {
-        match value {
-            Some(v) => self.scalar(v),
-            None => self.number(default, None),
-        }
-    }
-
     fn vector(&self, v: &ast::Vector) -> Result<Vector, RuleError> {
         match &v.value {
             ast::VectorSpec::Components(parts) => Ok(Vector([
@@ -335,28 +307,6 @@ impl<'a> Compiler<'a> {
                 })?;
                 Ok(Vector([one.clone(), one.clone(), one]))
             }
-        }
-    }
-
-    fn opt_vector(&self, v: &Option<ast::Vector>, default: [f64; 3]) -> Result<Vector, RuleError> {
-        match v {
-            Some(v) => self.vector(v),
-            None => Ok(Vector([
-                self.number(default[0], None)?,
-                self.number(default[1], None)?,
-                self.number(default[2], None)?,
-            ])),
-        }
-    }
-
-    fn offset(&self, op: &ast::ExtrudeOp, span: Option<Range<usize>>) -> Result<Offset, RuleError> {
-        match (&op.offset, &op.distance) {
-            (Some(_), Some(_)) => {
-                Err(self.error(span, "give either `offset` or `distance`, not both"))
-            }
-            (Some(v), None) => Ok(Offset::Vector(Box::new(self.vector(v)?))),
-            (None, Some(d)) => Ok(Offset::Normal(self.scalar(d)?)),
-            (None, None) => Ok(Offset::None),
         }
     }
 
@@ -468,43 +418,6 @@ fn property_help(domain: Domain) -> &'static str {
         Domain::Edge => "id, random, age, generation, radius, length, rel.length, pre.length, center.x/y/z, rel.x/y/z, dir.x/y/z, pre.x/y/z, post.x/y/z, min.x/y/z, max.x/y/z, faces, neighbors, out_edges, in_edges",
         Domain::Face => "id, random, age, generation, radius, area, rel.area, sides (= edges), neighbors, vert_neighbors, center.x/y/z, rel.x/y/z, normal.x/y/z, min.x/y/z, max.x/y/z",
     }
-}
-
-/// Which element kinds an operator's selection may be made of; the first
-/// is the default.
-pub(crate) fn allowed_domains(op: &Operation) -> &'static [Domain] {
-    use Domain::*;
-    match op {
-        Operation::Translate(_)
-        | Operation::Rotate(_)
-        | Operation::Scale(_)
-        | Operation::Merge(_)
-        | Operation::ExtrudeVerts(_) => &[Vert, Edge, Face],
-        Operation::ExtrudeEdges(_)
-        | Operation::SplitEdges(_)
-        | Operation::DissolveEdges(_)
-        | Operation::MakeFace(_) => &[Edge, Face],
-        Operation::Delete(_) | Operation::Duplicate(_) | Operation::Mirror(_) => {
-            &[Face, Edge, Vert]
-        }
-        Operation::CreateEdge(_) | Operation::EditNode(_) => &[Vert],
-        Operation::SplitEdge(_) | Operation::CreateFace(_) | Operation::Skin(_) => &[Edge],
-        _ => &[Face],
-    }
-}
-
-fn is_create(op: &Operation) -> bool {
-    matches!(
-        op,
-        Operation::Vertex(_)
-            | Operation::Circle(_)
-            | Operation::Grid(_)
-            | Operation::Cube(_)
-            | Operation::UvSphere(_)
-            | Operation::Cylinder(_)
-            | Operation::Cone(_)
-            | Operation::Import(_)
-    )
 }
 
 fn plural(d: Domain) -> &'static str {
@@ -671,8 +584,8 @@ pub fn compile(
     check_unrolled_size(&compiler, ast)?;
     let mut steps: Vec<Step> = Vec::new();
     if let Some(start) = &ast.start {
-        if let Some((key, op)) = &start.op {
-            if !is_create(&op.value) {
+        if let Some((key, _)) = &start.op {
+            if !operators::find(&key.value).is_some_and(|d| d.is_create()) {
                 return Err(compiler.error(key.span.clone(), format!("`[start]` must be a create operator (vertex, circle, grid, cube, uv_sphere, cylinder, cone, import), not `{}`", key.value)));
             }
         }
@@ -1359,7 +1272,7 @@ impl Expander<'_, '_> {
                     .with_help("make the first edge absolute (leave out `relative` or set it to false), as the trunk of rules/tree.toml does"));
             }
         }
-        let keeps_edgeless = matches!(op, Op::Vertex { .. })
+        let keeps_edgeless = matches!(op, Op::Call(call) if call.def.id == OpId::Vertex)
             || node_command.is_some_and(|c| c.kind == CommandKind::EditNode);
         if !keeps_edgeless {
             self.edges_possible = true;
@@ -1455,8 +1368,10 @@ impl Expander<'_, '_> {
             }
         };
         let op_span = op_key.span.clone();
-        let creates = op.is_some_and(|op| is_create(&op.value));
-        let whole_mesh = op.is_some_and(|op| matches!(op.value, Operation::Skin(_)));
+        let def = op
+            .map(|_| operators::find(&op_key.value).expect("the parser keeps operator keys only"));
+        let creates = def.is_some_and(|d| d.family == Family::Create);
+        let whole_mesh = def.is_some_and(|d| d.family == Family::WholeMesh);
         if creates || whole_mesh {
             for (present, key) in [
                 (step.select.is_some(), "select"),
@@ -1481,14 +1396,14 @@ impl Expander<'_, '_> {
                 .as_ref()
                 .map_or(Domain::Face, |compound| compound.domain)
         });
-        let allowed: &[Domain] = match (op, compound_domain) {
-            (Some(op), _) => allowed_domains(&op.value),
+        let allowed: &[Domain] = match (def, compound_domain) {
+            (Some(def), _) => def.domains,
             (None, Some(Domain::Vert)) => &[Domain::Vert],
             (None, Some(Domain::Edge)) => &[Domain::Edge],
             (None, _) => &[Domain::Face],
         };
         let domain = match &step.on {
-            None => allowed[0],
+            None => allowed.first().copied().unwrap_or(Domain::Face),
             Some(on) => {
                 let d = domain_of(on.value);
                 if !allowed.contains(&d) {
@@ -1511,8 +1426,9 @@ impl Expander<'_, '_> {
             None => None,
         };
         let op = match (op, compound_index) {
-            (Some(op), _) => {
-                let compiled = compile_op(c, op, op_span.clone(), domain, self.base_dir)?;
+            (Some(args), _) => {
+                let def = def.expect("an operator step has a definition");
+                let compiled = compile_op(c, def, args, op_span.clone(), domain, self.base_dir)?;
                 if matches!(compiled, Op::Command(_)) {
                     self.uses_graph = true;
                 }
@@ -1673,7 +1589,7 @@ fn check_stray_keys(c: &Compiler, step: &ast::Step) -> Result<(), RuleError> {
     };
     let span = stray.span.clone();
     Err(match &step.op {
-        Some((key, _)) if ast::OPERATOR_NAMES.contains(&stray.value.as_str()) => c
+        Some((key, _)) if operators::find(&stray.value).is_some() => c
             .error(
                 span,
                 format!(
@@ -1688,7 +1604,7 @@ fn check_stray_keys(c: &Compiler, step: &ast::Step) -> Result<(), RuleError> {
                 Some(best) => e.with_help(format!("did you mean `{best}`?")),
                 None => e.with_help(format!(
                     "a step takes `name`, `select`, `from`, `on`, `repeat` and one operator ({}), `rule = \"NAME\"` or `compound = \"NAME\"`",
-                    ast::OPERATOR_NAMES.join(", ")
+                    operators::names().collect::<Vec<_>>().join(", ")
                 )),
             }
         }
@@ -1722,312 +1638,401 @@ fn compile_frame(
     })
 }
 
-/// Compiles a G³ command's parameters against the matched primitive.
-fn compile_command(
-    c: &Compiler,
-    kind: CommandKind,
-    o: &ast::CommandOp,
-    domain: Domain,
-    span: Option<Range<usize>>,
-) -> Result<Command, RuleError> {
-    let scalar = |v: &Option<ast::Value>| -> Result<Option<Condition>, RuleError> {
-        v.as_ref().map(|v| c.property_scalar(domain, v)).transpose()
-    };
-    let vector = |v: &Option<ast::Vector>| -> Result<Option<Box<[Condition; 3]>>, RuleError> {
-        v.as_ref()
-            .map(|v| c.property_vector(domain, v).map(Box::new))
-            .transpose()
-    };
-    if let Some(p) = &o.probability {
-        if let AstScalar::Number(x) = p.value {
-            if !(0.0..=1.0).contains(&x) {
-                return Err(c.error(
-                    p.span.clone(),
-                    format!("a probability must be in [0, 1], got {x}"),
-                ));
-            }
-        }
-    }
-    for (value, key) in [
-        (&o.vary_length, "vary_length"),
-        (&o.vary_radius, "vary_radius"),
-        (&o.vary_turn, "vary_turn"),
-        (&o.vary_pitch, "vary_pitch"),
-        (&o.vary_roll, "vary_roll"),
-    ] {
-        if let Some(Spanned {
-            value: AstScalar::Number(x),
-            span: s,
-        }) = value
-        {
-            if *x < 0.0 {
-                return Err(c.error(
-                    s.clone(),
-                    format!("`{key}` is a spread σ (values are drawn from U(−σ, σ)) and cannot be negative, got {x}"),
-                ));
-            }
-        }
-    }
-    let nodes = match (&o.nodes, kind) {
-        (None, _) => None,
-        (Some(n), CommandKind::SplitFace) => Some(c.condition(Domain::Vert, n)?),
-        (Some(n), _) => {
-            return Err(c.error(
-                c.content_span(n, &n.value).or(span),
-                "`nodes` (a secondary condition) belongs to `split_face` only",
-            ))
-        }
-    };
-    Ok(Command {
-        kind,
-        relative: o.relative.unwrap_or(!matches!(
-            kind,
-            CommandKind::CreateEdge | CommandKind::EditNode
-        )),
-        length: scalar(&o.length)?,
-        radius: scalar(&o.radius)?,
-        heading: vector(&o.heading)?,
-        up: vector(&o.up)?,
-        turn: scalar(&o.turn)?,
-        pitch: scalar(&o.pitch)?,
-        roll: scalar(&o.roll)?,
-        vary_length: scalar(&o.vary_length)?,
-        vary_radius: scalar(&o.vary_radius)?,
-        vary_turn: scalar(&o.vary_turn)?,
-        vary_pitch: scalar(&o.vary_pitch)?,
-        vary_roll: scalar(&o.vary_roll)?,
-        probability: scalar(&o.probability)?,
-        nodes,
-    })
+/// An operator's arguments checked against its definition: every key
+/// known, none twice, the required ones present, exclusive ones apart,
+/// every value of its parameter's shape and literal numbers in bounds.
+/// Values by parameter index.
+struct CheckedArgs<'a> {
+    def: &'static OperatorDef,
+    values: Vec<Option<&'a Spanned<ArgValue>>>,
 }
 
+fn check_args<'a>(
+    c: &Compiler,
+    def: &'static OperatorDef,
+    args: &'a Spanned<ast::Args>,
+    span: Option<Range<usize>>,
+) -> Result<CheckedArgs<'a>, RuleError> {
+    let mut values: Vec<Option<&'a Spanned<ArgValue>>> = vec![None; def.params.len()];
+    for (key, value) in &args.value.0 {
+        let Some(i) = def.params.iter().position(|p| p.key == key.value) else {
+            if key.value == "nodes" && def.family == Family::Command {
+                return Err(c.error(
+                    key.span.clone(),
+                    "`nodes` (a secondary condition) belongs to `split_face` only",
+                ));
+            }
+            let expected = if def.params.is_empty() {
+                format!("`{}` takes no parameters", def.name)
+            } else {
+                let keys: Vec<String> = def.keys().map(|k| format!("`{k}`")).collect();
+                format!("expected one of {}", keys.join(", "))
+            };
+            let keys: Vec<&str> = def.keys().collect();
+            let e = c.error(
+                key.span.clone(),
+                format!("unknown field `{}`, {expected}", key.value),
+            );
+            return Err(match closest_in(&key.value, &keys) {
+                Some(k) => e.with_help(format!("did you mean `{}`?", keys[k])),
+                None => e,
+            });
+        };
+        if values[i].is_some() {
+            return Err(c.error(key.span.clone(), format!("duplicate field `{}`", key.value)));
+        }
+        check_value(c, def, &def.params[i], value)?;
+        values[i] = Some(value);
+    }
+    for (p, v) in def.params.iter().zip(&values) {
+        if p.required && v.is_none() {
+            return Err(c.error(
+                args.span.clone().or(span.clone()),
+                format!("missing field `{}`", p.key),
+            ));
+        }
+    }
+    let present = |key: &str| {
+        def.params
+            .iter()
+            .zip(&values)
+            .any(|(p, v)| p.key == key && v.is_some())
+    };
+    for (a, b) in def.exclusive {
+        if present(a) && present(b) {
+            return Err(c.error(span, format!("give either `{a}` or `{b}`, not both")));
+        }
+    }
+    Ok(CheckedArgs { def, values })
+}
+
+/// Checks one value's shape (and a literal number's bounds) for its parameter.
+fn check_value(
+    c: &Compiler,
+    def: &OperatorDef,
+    p: &ParamDef,
+    value: &Spanned<ArgValue>,
+) -> Result<(), RuleError> {
+    let wrong = |expected: &str| {
+        c.error(
+            value.span.clone(),
+            format!(
+                "invalid type: {}, expected {expected}",
+                value.value.describe()
+            ),
+        )
+    };
+    let scalar = |v: &ArgValue| matches!(v, ArgValue::Number(_) | ArgValue::Text(_));
+    let scalars = |items: &[Spanned<ArgValue>]| items.iter().all(|i| scalar(&i.value));
+    match (p.kind, &value.value) {
+        (ArgKind::Scalar | ArgKind::Element, v) if scalar(v) => {}
+        (ArgKind::Scalar | ArgKind::Element, _) => {
+            return Err(wrong("a number or an expression string"))
+        }
+        (ArgKind::Vector | ArgKind::ElementVector, ArgValue::List(items)) => {
+            if items.len() != 3 {
+                return Err(c.error(
+                    value.span.clone(),
+                    format!("invalid length {}, expected 3 components", items.len()),
+                ));
+            }
+            if !scalars(items) {
+                return Err(wrong("a 3-vector [x, y, z] of numbers or expressions"));
+            }
+        }
+        (ArgKind::Vector | ArgKind::ElementVector, v) if scalar(v) => {}
+        (ArgKind::Vector | ArgKind::ElementVector, _) => {
+            return Err(wrong(
+                "a 3-vector [x, y, z] or a single number or expression",
+            ))
+        }
+        (ArgKind::Pair, ArgValue::List(items)) if items.len() == 2 && scalars(items) => {}
+        (ArgKind::Pair, ArgValue::List(items)) if items.len() != 2 => {
+            return Err(c.error(
+                value.span.clone(),
+                format!("invalid length {}, expected 2 values", items.len()),
+            ))
+        }
+        (ArgKind::Pair, _) => return Err(wrong("a list of two numbers or expressions, [a, b]")),
+        (ArgKind::ScalarList, ArgValue::List(items)) if scalars(items) => {
+            if items.is_empty() {
+                return Err(c.error(
+                    value.span.clone(),
+                    format!("`{}` needs at least one value", p.key),
+                ));
+            }
+        }
+        (ArgKind::ScalarList, _) => return Err(wrong("a list of numbers or expressions")),
+        (ArgKind::Bool, ArgValue::Bool(_)) => {}
+        (ArgKind::Bool, _) => return Err(wrong("a boolean")),
+        (ArgKind::Choice(names), ArgValue::Text(n) | ArgValue::Name(n)) => {
+            if !names.contains(&n.as_str()) {
+                let list: Vec<String> = names.iter().map(|n| format!("`{n}`")).collect();
+                return Err(c.error(
+                    value.span.clone(),
+                    format!("unknown variant `{n}`, expected one of {}", list.join(", ")),
+                ));
+            }
+        }
+        (ArgKind::Choice(_), _) => return Err(wrong("a name")),
+        (ArgKind::Path, ArgValue::Text(t)) if !t.is_empty() => {}
+        (ArgKind::Path, _) => return Err(wrong("a file path string")),
+        (ArgKind::NodeCondition, ArgValue::Text(_)) => {}
+        (ArgKind::NodeCondition, _) => return Err(wrong("a condition string")),
+    }
+    let mut literals: Vec<(f64, Option<Range<usize>>)> = Vec::new();
+    match &value.value {
+        ArgValue::Number(x) => literals.push((*x, value.span.clone())),
+        ArgValue::List(items) => {
+            for item in items {
+                if let ArgValue::Number(x) = item.value {
+                    literals.push((x, item.span.clone()));
+                }
+            }
+        }
+        _ => {}
+    }
+    for (x, span) in literals {
+        if !x.is_finite() {
+            return Err(c.error(span, "numbers must be finite"));
+        }
+        let below = p.min.is_some_and(|m| x < m);
+        let above = p.max.is_some_and(|m| x > m);
+        if below || above {
+            let message = match (p.min, p.max) {
+                (Some(lo), Some(hi)) => format!("a {} must be in [{lo}, {hi}], got {x}", p.key),
+                _ if p.key.starts_with("vary_") => format!(
+                    "`{}` is a spread σ (values are drawn from U(−σ, σ)) and cannot be negative, got {x}",
+                    p.key
+                ),
+                (Some(lo), None) => format!("`{}` of `{}` must be at least {lo}, got {x}", p.key, def.name),
+                (None, Some(hi)) => format!("`{}` of `{}` must be at most {hi}, got {x}", p.key, def.name),
+                (None, None) => unreachable!("a bound was passed"),
+            };
+            return Err(c.error(span, message));
+        }
+    }
+    Ok(())
+}
+
+impl CheckedArgs<'_> {
+    fn value(&self, key: &str) -> Option<&Spanned<ArgValue>> {
+        let i = self.def.params.iter().position(|p| p.key == key)?;
+        self.values[i]
+    }
+
+    /// The value as the AST's scalar (checked to be one).
+    fn scalar(&self, key: &str) -> Option<ast::Value> {
+        self.value(key).map(as_scalar)
+    }
+
+    /// The value as the AST's vector (checked to be one).
+    fn vector(&self, key: &str) -> Option<ast::Vector> {
+        self.value(key).map(|v| match &v.value {
+            ArgValue::List(items) => Spanned {
+                value: ast::VectorSpec::Components(Box::new([
+                    as_scalar(&items[0]),
+                    as_scalar(&items[1]),
+                    as_scalar(&items[2]),
+                ])),
+                span: v.span.clone(),
+            },
+            _ => {
+                let s = as_scalar(v);
+                Spanned {
+                    value: ast::VectorSpec::Uniform(s.value),
+                    span: s.span,
+                }
+            }
+        })
+    }
+
+    fn text(&self, key: &str) -> Option<Spanned<String>> {
+        self.value(key).and_then(|v| match &v.value {
+            ArgValue::Text(t) | ArgValue::Name(t) => Some(Spanned {
+                value: t.clone(),
+                span: v.span.clone(),
+            }),
+            _ => None,
+        })
+    }
+
+    fn flag(&self, key: &str) -> Option<bool> {
+        self.value(key).and_then(|v| match v.value {
+            ArgValue::Bool(b) => Some(b),
+            _ => None,
+        })
+    }
+}
+
+/// A number or text value as the AST's scalar.
+fn as_scalar(v: &Spanned<ArgValue>) -> ast::Value {
+    Spanned {
+        value: match &v.value {
+            ArgValue::Number(x) => AstScalar::Number(*x),
+            ArgValue::Text(t) => AstScalar::Expr(t.clone()),
+            other => unreachable!("checked to be a scalar: {other:?}"),
+        },
+        span: v.span.clone(),
+    }
+}
+
+/// Compiles an operator's arguments. A G³ command becomes a [`Command`];
+/// every other operator a [`Call`] with one [`Arg`] per parameter,
+/// defaults filled in.
 fn compile_op(
     c: &Compiler,
-    op: &Spanned<Operation>,
+    def: &'static OperatorDef,
+    args: &Spanned<ast::Args>,
     span: Option<Range<usize>>,
     domain: Domain,
     base_dir: &Path,
 ) -> Result<Op, RuleError> {
-    let s = |v: &ast::Value| c.scalar(v);
-    let command = |kind: CommandKind, o: &ast::CommandOp| -> Result<Op, RuleError> {
-        Ok(Op::Command(Box::new(compile_command(
-            c,
-            kind,
-            o,
-            domain,
-            span.clone(),
-        )?)))
-    };
-    Ok(match &op.value {
-        Operation::Vertex(o) => Op::Vertex {
-            at: c.opt_vector(&o.at, [0.0; 3])?,
-            radius: o.radius.as_ref().map(s).transpose()?,
-        },
-        Operation::Circle(o) => Op::Circle {
-            segments: c.opt_scalar(&o.segments, 32.0)?,
-            radius: c.opt_scalar(&o.radius, 1.0)?,
-            fill: o.fill.unwrap_or(false),
-        },
-        Operation::Grid(o) => {
-            let segments = match &o.segments {
-                Some(ast::Pair([a, b])) => [s(a)?, s(b)?],
-                None => [c.number(1.0, None)?, c.number(1.0, None)?],
-            };
-            let size = match &o.size {
-                Some(ast::Pair([a, b])) => [s(a)?, s(b)?],
-                None => [c.number(2.0, None)?, c.number(2.0, None)?],
-            };
-            Op::Grid { segments, size }
-        }
-        Operation::Cube(o) => Op::Cube {
-            size: c.opt_scalar(&o.size, 2.0)?,
-        },
-        Operation::UvSphere(o) => Op::UvSphere {
-            segments: c.opt_scalar(&o.segments, 32.0)?,
-            rings: c.opt_scalar(&o.rings, 16.0)?,
-            radius: c.opt_scalar(&o.radius, 1.0)?,
-        },
-        Operation::Cylinder(o) => {
-            let radius = c.opt_scalar(&o.radius, 1.0)?;
-            Op::Cylinder {
-                segments: c.opt_scalar(&o.segments, 32.0)?,
-                radius_top: match &o.radius_top {
-                    Some(v) => s(v)?,
-                    None => radius.clone(),
-                },
-                radius,
-                depth: c.opt_scalar(&o.depth, 2.0)?,
-                caps: o.caps.unwrap_or(true),
+    let checked = check_args(c, def, args, span.clone())?;
+    if def.family == Family::Command {
+        return Ok(Op::Command(Box::new(compile_command(c, &checked, domain)?)));
+    }
+    let mut compiled: Vec<Arg> = Vec::with_capacity(def.params.len());
+    for p in def.params {
+        let arg = match (p.kind, checked.value(p.key)) {
+            (ArgKind::Scalar, Some(_)) => {
+                Arg::Scalar(c.scalar(&checked.scalar(p.key).expect("present"))?)
             }
-        }
-        Operation::Cone(o) => Op::Cylinder {
-            segments: c.opt_scalar(&o.segments, 32.0)?,
-            radius: c.opt_scalar(&o.radius, 1.0)?,
-            radius_top: c.number(0.0, None)?,
-            depth: c.opt_scalar(&o.depth, 2.0)?,
-            caps: o.caps.unwrap_or(true),
-        },
-        Operation::Import(o) => {
-            let path = PathBuf::from(&o.path.value);
-            let path = if path.is_absolute() {
-                path
-            } else {
-                base_dir.join(path)
-            };
-            let location = match &o.path.span {
-                Some(span) => {
-                    let (line, column) = super::diagnostic::line_column(&c.file.text, span.start);
-                    format!("{}:{line}:{column}", c.file.name)
-                }
-                None => c.file.name.clone(),
-            };
-            let weld = match &o.weld {
-                Some(w) if !(w.value.is_finite() && w.value >= 0.0) => {
-                    return Err(c.error(
-                        w.span.clone(),
-                        format!("`weld` is a distance ≥ 0, got {}", w.value),
-                    ))
-                }
-                w => w.as_ref().map(|w| w.value),
-            };
-            let y_up = match o.up {
-                None | Some(ast::AxisName::Z) => false,
-                Some(ast::AxisName::Y) => true,
-                Some(ast::AxisName::X) => {
-                    return Err(c.error(span.clone(), "`up` of an import is \"y\" or \"z\""))
-                }
-            };
-            Op::Import {
-                resource: c.resource(Resource {
+            (ArgKind::Vector, Some(_)) => {
+                Arg::Vector(c.vector(&checked.vector(p.key).expect("present"))?)
+            }
+            (ArgKind::Pair, Some(v)) => match &v.value {
+                ArgValue::List(items) => Arg::Pair([
+                    c.scalar(&as_scalar(&items[0]))?,
+                    c.scalar(&as_scalar(&items[1]))?,
+                ]),
+                _ => unreachable!("checked to be a pair"),
+            },
+            (ArgKind::ScalarList, Some(v)) => match &v.value {
+                ArgValue::List(items) => Arg::List(
+                    items
+                        .iter()
+                        .map(|i| c.scalar(&as_scalar(i)))
+                        .collect::<Result<_, _>>()?,
+                ),
+                _ => unreachable!("checked to be a list"),
+            },
+            (ArgKind::Bool, Some(_)) => Arg::Bool(checked.flag(p.key).expect("present")),
+            (ArgKind::Choice(names), Some(_)) => {
+                let name = checked.text(p.key).expect("present").value;
+                Arg::Choice(names.iter().position(|n| *n == name).expect("checked"))
+            }
+            (ArgKind::Path, Some(_)) => {
+                let written = checked.text(p.key).expect("present");
+                let path = PathBuf::from(&written.value);
+                let path = if path.is_absolute() {
+                    path
+                } else {
+                    base_dir.join(path)
+                };
+                let location = match &written.span {
+                    Some(span) => {
+                        let (line, column) =
+                            super::diagnostic::line_column(&c.file.text, span.start);
+                        format!("{}:{line}:{column}", c.file.name)
+                    }
+                    None => c.file.name.clone(),
+                };
+                Arg::Resource(c.resource(Resource {
                     path,
-                    written: o.path.value.clone(),
+                    written: written.value,
                     location,
-                }),
-                weld,
-                y_up,
+                }))
             }
-        }
-        Operation::Translate(o) => Op::Translate {
-            offset: c.vector(&o.offset)?,
-        },
-        Operation::Rotate(o) => Op::Rotate {
-            angle_degrees: s(&o.angle)?,
-            axis: c.opt_vector(&o.axis, [0.0, 0.0, 1.0])?,
-            center: c.opt_vector(&o.center, [0.0; 3])?,
-        },
-        Operation::Scale(o) => Op::Scale {
-            factor: c.vector(&o.factor)?,
-            center: c.opt_vector(&o.center, [0.0; 3])?,
-        },
-        Operation::ExtrudeVerts(o) => Op::ExtrudeVerts {
-            offset: c.offset(o, span)?,
-        },
-        Operation::ExtrudeEdges(o) => Op::ExtrudeEdges {
-            offset: c.offset(o, span)?,
-        },
-        Operation::ExtrudeFaces(o) => Op::ExtrudeFaces {
-            keep_original: o.keep_original.unwrap_or(false),
-            offset: c.offset(o, span)?,
-        },
-        Operation::ExtrudeRegion(o) => Op::ExtrudeRegion {
-            keep_original: o.keep_original.unwrap_or(false),
-            offset: c.offset(o, span)?,
-        },
-        Operation::InsetFaces(o) => Op::InsetFaces {
-            thickness: s(&o.thickness)?,
-            depth: c.opt_scalar(&o.depth, 0.0)?,
-        },
-        Operation::InsetRegion(o) => Op::InsetRegion {
-            thickness: s(&o.thickness)?,
-            depth: c.opt_scalar(&o.depth, 0.0)?,
-        },
-        Operation::SplitEdges(o) => match (&o.cuts, &o.ratios) {
-            (Some(_), Some(_)) => {
-                return Err(c.error(span, "give either `cuts` or `ratios`, not both"))
+            (ArgKind::Element | ArgKind::ElementVector | ArgKind::NodeCondition, _) => {
+                unreachable!("per-primitive parameters belong to G³ commands")
             }
-            (Some(n), None) => Op::SplitEdgesCuts { cuts: s(n)? },
-            (None, Some(r)) => {
-                if r.is_empty() {
-                    return Err(c.error(span, "`ratios` needs at least one value"));
+            (_, None) => match p.default {
+                Default::None => Arg::Absent,
+                Default::Number(x) => Arg::Scalar(c.number(x, None)?),
+                Default::Vector(v) => Arg::Vector(Vector([
+                    c.number(v[0], None)?,
+                    c.number(v[1], None)?,
+                    c.number(v[2], None)?,
+                ])),
+                Default::Pair(v) => Arg::Pair([c.number(v[0], None)?, c.number(v[1], None)?]),
+                Default::Bool(b) => Arg::Bool(b),
+                Default::Choice(i) => Arg::Choice(i),
+                Default::SameAs(other) => {
+                    let i = def
+                        .params
+                        .iter()
+                        .position(|q| q.key == other)
+                        .expect("registered");
+                    compiled[i].clone()
                 }
-                Op::SplitEdgesRatios {
-                    ratios: r.iter().map(s).collect::<Result<_, _>>()?,
-                }
-            }
-            (None, None) => Op::SplitEdgesCuts {
-                cuts: c.number(1.0, None)?,
             },
-        },
-        Operation::Triangulate(_) => Op::Triangulate,
-        Operation::Reverse(_) => Op::Reverse,
-        Operation::RecomputeNormals(o) => Op::RecomputeNormals {
-            outside: o.outside.unwrap_or(true),
-        },
-        Operation::Delete(o) => Op::Delete {
-            mode: match o.mode.unwrap_or(ast::DeleteModeName::All) {
-                ast::DeleteModeName::All => DeleteMode::All,
-                ast::DeleteModeName::Faces => DeleteMode::Faces,
-                ast::DeleteModeName::FacesAndEdges => DeleteMode::FacesAndEdges,
-            },
-        },
-        Operation::Duplicate(_) => Op::Duplicate,
-        Operation::DissolveEdges(_) => Op::DissolveEdges,
-        Operation::MakeFace(_) => Op::MakeFace,
-        Operation::Merge(o) => Op::Merge {
-            distance: s(&o.distance)?,
-        },
-        Operation::Mirror(o) => {
-            let normal = match (&o.axis, &o.normal) {
-                (Some(_), Some(_)) => {
-                    return Err(c.error(span, "give either `axis` or `normal`, not both"))
-                }
-                (Some(a), None) => {
-                    let mut n = [0.0; 3];
-                    n[*a as usize] = 1.0;
-                    c.opt_vector(&None, n)?
-                }
-                (None, Some(n)) => c.vector(n)?,
-                (None, None) => c.opt_vector(&None, [1.0, 0.0, 0.0])?,
-            };
-            Op::Mirror {
-                point: c.opt_vector(&o.point, [0.0; 3])?,
-                normal,
-                merge_distance: c.opt_scalar(&o.merge_distance, 1e-6)?,
-            }
-        }
-        Operation::RegionExtend(o) => Op::RegionExtend {
-            by: adjacency(o.by),
-        },
-        Operation::RegionReduce(o) => Op::RegionReduce {
-            by: adjacency(o.by),
-        },
-        Operation::CreateEdge(o) => command(CommandKind::CreateEdge, o)?,
-        Operation::SplitEdge(o) => command(CommandKind::SplitEdge, o)?,
-        Operation::CreateFace(o) => command(CommandKind::CreateFace, o)?,
-        Operation::SplitFace(o) => command(CommandKind::SplitFace, o)?,
-        Operation::EditNode(o) => command(CommandKind::EditNode, o)?,
-        Operation::Skin(o) => Op::Skin {
-            sides: c.opt_scalar(&o.sides, 8.0)?,
-            radius: c.opt_scalar(&o.radius, 0.1)?,
-            joints: o.joints.unwrap_or(true),
-            keep_wires: o.keep_wires.unwrap_or(false),
-        },
-    })
+        };
+        compiled.push(arg);
+    }
+    Ok(Op::Call(Call {
+        def,
+        args: compiled,
+    }))
 }
 
-fn adjacency(by: Option<ast::AdjacencyName>) -> Adjacency {
-    match by.unwrap_or(ast::AdjacencyName::Edge) {
-        ast::AdjacencyName::Edge => Adjacency::Edge,
-        ast::AdjacencyName::Vert => Adjacency::Vert,
-    }
+/// A G³ command's parameters (thesis 003 §2.4.3): conditions evaluated per
+/// matched primitive.
+fn compile_command(c: &Compiler, a: &CheckedArgs, domain: Domain) -> Result<Command, RuleError> {
+    let kind = match a.def.id {
+        OpId::CreateEdge => CommandKind::CreateEdge,
+        OpId::SplitEdge => CommandKind::SplitEdge,
+        OpId::CreateFace => CommandKind::CreateFace,
+        OpId::SplitFace => CommandKind::SplitFace,
+        OpId::EditNode => CommandKind::EditNode,
+        other => unreachable!("{other:?} is no command"),
+    };
+    let scalar = |key: &str| -> Result<Option<Condition>, RuleError> {
+        a.scalar(key)
+            .map(|v| c.property_scalar(domain, &v))
+            .transpose()
+    };
+    let vector = |key: &str| -> Result<Option<Box<[Condition; 3]>>, RuleError> {
+        a.vector(key)
+            .map(|v| c.property_vector(domain, &v).map(Box::new))
+            .transpose()
+    };
+    let nodes = match a.def.param("nodes") {
+        Some(_) => a
+            .text("nodes")
+            .map(|n| c.condition(Domain::Vert, &n))
+            .transpose()?,
+        None => None,
+    };
+    Ok(Command {
+        kind,
+        relative: a.flag("relative").unwrap_or(!matches!(
+            kind,
+            CommandKind::CreateEdge | CommandKind::EditNode
+        )),
+        length: scalar("length")?,
+        radius: scalar("radius")?,
+        heading: vector("heading")?,
+        up: vector("up")?,
+        turn: scalar("turn")?,
+        pitch: scalar("pitch")?,
+        roll: scalar("roll")?,
+        vary_length: scalar("vary_length")?,
+        vary_radius: scalar("vary_radius")?,
+        vary_turn: scalar("vary_turn")?,
+        vary_pitch: scalar("vary_pitch")?,
+        vary_roll: scalar("vary_roll")?,
+        probability: scalar("probability")?,
+        nodes,
+    })
 }
 
 /// The step key nearest to `word`, if close enough to be a typo.
 fn closest(word: &str) -> Option<&'static str> {
     let keys: Vec<&'static str> = ast::STEP_KEYS
         .iter()
-        .chain(ast::OPERATOR_NAMES)
         .copied()
+        .chain(operators::names())
         .collect();
     closest_in(word, &keys).map(|i| keys[i])
 }
@@ -2044,9 +2049,13 @@ fn unknown_name_hint(message: &str, names: &[String]) -> Option<String> {
     closest_in(name, names).map(|i| format!("did you mean `{}`?", names[i]))
 }
 
-/// Loads and compiles a rule file in one go.
-pub fn compile_file(path: &Path, overrides: &[Override]) -> Result<Program, RuleError> {
-    let (file, ast) = load(path)?;
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    compile(&file, &ast, overrides, &base_dir)
+/// Parses and compiles a rule file's text; `base_dir` resolves the paths
+/// it names (the caller reads those files: see [`Program::resources`]).
+pub fn compile_source(
+    file: &SourceFile,
+    overrides: &[Override],
+    base_dir: &Path,
+) -> Result<Program, RuleError> {
+    let ast = load(file)?;
+    compile(file, &ast, overrides, base_dir)
 }

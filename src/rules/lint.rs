@@ -30,13 +30,13 @@ use std::path::Path;
 use crate::geom::interval::{next_down, next_up, Interval};
 use crate::kernel::Domain;
 
-use super::ast::{self, Operation, ParamSpec, RuleFile, Scalar, VectorSpec};
+use super::ast::{self, ArgValue, ParamSpec, RuleFile, Scalar, VectorSpec};
 use super::compile::{
-    self, allowed_domains, domain_of, property_for, property_from_index, property_index, Override,
-    PROPERTY_SLOTS,
+    self, domain_of, property_for, property_from_index, property_index, Override, PROPERTY_SLOTS,
 };
 use super::diagnostic::{content_span, line_column, RuleError, SourceFile};
 use super::expr::{Binary, Expr, Ternary, Tree, Unary};
+use super::operators::{self, ArgKind, Family};
 use super::program::{ParamKind, Program, Property};
 use super::spanned::Spanned;
 
@@ -91,16 +91,19 @@ pub const CODES: &[&str] = &[
 /// error); otherwise the findings, errors (`undefined-name`) first. When
 /// there are undefined names the file does not compile, and only those are
 /// reported.
-pub fn lint_file(path: &Path, overrides: &[Override]) -> Result<Vec<Finding>, RuleError> {
-    let (file, ast) = compile::load(path)?;
-    let linter = Linter::new(&file, &ast);
+pub fn lint_source(
+    file: &SourceFile,
+    overrides: &[Override],
+    base_dir: &Path,
+) -> Result<Vec<Finding>, RuleError> {
+    let ast = compile::load(file)?;
+    let linter = Linter::new(file, &ast);
     let sites = linter.sites();
     let undefined = linter.undefined_names(&sites);
     if !undefined.is_empty() {
         return Ok(undefined);
     }
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let program = compile::compile(&file, &ast, overrides, &base_dir)?;
+    let program = compile::compile(file, &ast, overrides, base_dir)?;
     let mut findings = Vec::new();
     linter.unused_params(&sites, &mut findings);
     linter.unused_definitions(&mut findings);
@@ -255,7 +258,9 @@ impl<'a> Linter<'a> {
         for step in steps {
             let domain = match (&step.on, &step.op, &step.compound) {
                 (Some(on), _, _) => domain_of(on.value),
-                (None, Some((_, op)), _) => allowed_domains(&op.value)[0],
+                (None, Some((key, _)), _) => operators::find(&key.value)
+                    .and_then(|d| d.domains.first().copied())
+                    .unwrap_or(Domain::Face),
                 (None, None, Some((_, call))) => {
                     compound_domain(&call.value.name.value).unwrap_or(Domain::Face)
                 }
@@ -273,8 +278,8 @@ impl<'a> Linter<'a> {
                     &mut out,
                 );
             }
-            if let Some((_, op)) = &step.op {
-                self.operation(&op.value, domain, &mut out);
+            if let Some((key, op)) = &step.op {
+                self.operation(&key.value, &op.value, domain, &mut out);
             }
         }
         out
@@ -345,112 +350,48 @@ impl<'a> Linter<'a> {
         }
     }
 
-    fn operation(&self, op: &'a Operation, domain: Domain, out: &mut Vec<Site<'a>>) {
-        let k = Context::Operator;
-        let mut values: Vec<&'a ast::Value> = Vec::new();
-        let mut vectors: Vec<&'a ast::Vector> = Vec::new();
-        let mut pairs: Vec<&'a ast::Pair> = Vec::new();
-        match op {
-            Operation::Vertex(o) => {
-                vectors.extend(&o.at);
-                values.extend(&o.radius);
-            }
-            Operation::Circle(o) => values.extend([&o.segments, &o.radius].into_iter().flatten()),
-            Operation::Grid(o) => pairs.extend([&o.segments, &o.size].into_iter().flatten()),
-            Operation::Cube(o) => values.extend(&o.size),
-            Operation::UvSphere(o) => {
-                values.extend([&o.segments, &o.rings, &o.radius].into_iter().flatten())
-            }
-            Operation::Cylinder(o) => values.extend(
-                [&o.segments, &o.radius, &o.radius_top, &o.depth]
-                    .into_iter()
-                    .flatten(),
-            ),
-            Operation::Cone(o) => {
-                values.extend([&o.segments, &o.radius, &o.depth].into_iter().flatten())
-            }
-            Operation::Import(_)
-            | Operation::Triangulate(_)
-            | Operation::Reverse(_)
-            | Operation::RecomputeNormals(_)
-            | Operation::Delete(_)
-            | Operation::Duplicate(_)
-            | Operation::DissolveEdges(_)
-            | Operation::MakeFace(_)
-            | Operation::RegionExtend(_)
-            | Operation::RegionReduce(_) => {}
-            Operation::Translate(o) => vectors.push(&o.offset),
-            Operation::Rotate(o) => {
-                values.push(&o.angle);
-                vectors.extend([&o.axis, &o.center].into_iter().flatten());
-            }
-            Operation::Scale(o) => {
-                vectors.push(&o.factor);
-                vectors.extend(&o.center);
-            }
-            Operation::ExtrudeVerts(o)
-            | Operation::ExtrudeEdges(o)
-            | Operation::ExtrudeFaces(o)
-            | Operation::ExtrudeRegion(o) => {
-                vectors.extend(&o.offset);
-                values.extend(&o.distance);
-            }
-            Operation::InsetFaces(o) | Operation::InsetRegion(o) => {
-                values.push(&o.thickness);
-                values.extend(&o.depth);
-            }
-            Operation::SplitEdges(o) => {
-                values.extend(&o.cuts);
-                values.extend(o.ratios.iter().flatten());
-            }
-            Operation::Merge(o) => values.push(&o.distance),
-            Operation::Mirror(o) => {
-                vectors.extend([&o.normal, &o.point].into_iter().flatten());
-                values.extend(&o.merge_distance);
-            }
-            Operation::Skin(o) => values.extend([&o.sides, &o.radius].into_iter().flatten()),
-            Operation::CreateEdge(c)
-            | Operation::SplitEdge(c)
-            | Operation::CreateFace(c)
-            | Operation::SplitFace(c)
-            | Operation::EditNode(c) => {
-                let p = Context::Primitive(domain);
-                for (v, key) in [
-                    (&c.length, "length"),
-                    (&c.radius, "radius"),
-                    (&c.turn, "turn"),
-                    (&c.pitch, "pitch"),
-                    (&c.roll, "roll"),
-                    (&c.vary_length, "vary_length"),
-                    (&c.vary_radius, "vary_radius"),
-                    (&c.vary_turn, "vary_turn"),
-                    (&c.vary_pitch, "vary_pitch"),
-                    (&c.vary_roll, "vary_roll"),
-                    (&c.probability, "probability"),
-                ] {
-                    if let Some(v) = v {
-                        self.value(v, p, key, out);
+    /// The expression sites of an operator's arguments, by the kind of
+    /// each parameter in the registry: operator values see parameters
+    /// only, a G³ command's see the matched primitive too.
+    fn operation(&self, name: &str, args: &'a ast::Args, domain: Domain, out: &mut Vec<Site<'a>>) {
+        let Some(def) = operators::find(name) else {
+            return;
+        };
+        for (key, value) in &args.0 {
+            let Some(p) = def.param(&key.value) else {
+                continue;
+            };
+            let (context, site_key) = match p.kind {
+                ArgKind::Element | ArgKind::ElementVector => (Context::Primitive(domain), p.key),
+                ArgKind::NodeCondition => {
+                    if let ArgValue::Text(text) = &value.value {
+                        out.push(Site {
+                            text,
+                            span: self.content_span(value, text),
+                            context: Context::Condition(Domain::Vert),
+                            key: p.key,
+                        });
                     }
+                    continue;
                 }
-                for (v, key) in [(&c.heading, "heading"), (&c.up, "up")] {
-                    if let Some(v) = v {
-                        self.vector(v, p, key, out);
-                    }
+                ArgKind::Scalar | ArgKind::Vector | ArgKind::Pair | ArgKind::ScalarList => {
+                    (Context::Operator, "operator")
                 }
-                if let Some(n) = &c.nodes {
-                    out.push(self.condition(n, Domain::Vert, "nodes"));
+                ArgKind::Bool | ArgKind::Choice(_) | ArgKind::Path => continue,
+            };
+            let items: Vec<&'a Spanned<ArgValue>> = match &value.value {
+                ArgValue::List(items) => items.iter().collect(),
+                _ => vec![value],
+            };
+            for item in items {
+                if let ArgValue::Text(text) = &item.value {
+                    out.push(Site {
+                        text,
+                        span: self.content_span(item, text),
+                        context,
+                        key: site_key,
+                    });
                 }
-            }
-        }
-        for v in values {
-            self.value(v, k, "operator", out);
-        }
-        for v in vectors {
-            self.vector(v, k, "operator", out);
-        }
-        for ast::Pair(p) in pairs {
-            for v in p {
-                self.value(v, k, "operator", out);
             }
         }
     }
@@ -645,23 +586,15 @@ impl<'a> Linter<'a> {
                 .select
                 .as_ref()
                 .is_some_and(|s| mentions(&s.value, "random"));
-            let varies = match step.op.as_ref().map(|(_, op)| &op.value) {
-                Some(
-                    ast::Operation::CreateEdge(c)
-                    | ast::Operation::SplitEdge(c)
-                    | ast::Operation::CreateFace(c)
-                    | ast::Operation::SplitFace(c)
-                    | ast::Operation::EditNode(c),
-                ) => {
-                    c.probability.is_some()
-                        || c.vary_length.is_some()
-                        || c.vary_radius.is_some()
-                        || c.vary_turn.is_some()
-                        || c.vary_pitch.is_some()
-                        || c.vary_roll.is_some()
-                }
-                _ => false,
-            };
+            // A G³ command draws when it has a probability or a spread.
+            let varies = step.op.as_ref().is_some_and(|(key, args)| {
+                operators::find(&key.value).is_some_and(|d| d.family == Family::Command)
+                    && args
+                        .value
+                        .0
+                        .iter()
+                        .any(|(k, _)| k.value == "probability" || k.value.starts_with("vary_"))
+            });
             if reads_random || varies {
                 out.push(self.finding(
                     Severity::Warning,

@@ -11,12 +11,13 @@ pub mod compile;
 pub mod diagnostic;
 pub mod expr;
 pub mod lint;
+pub mod operators;
 pub mod program;
 pub mod random;
 pub mod ron;
 pub mod schema;
 pub mod spanned;
 
-pub use compile::{compile_file, Override};
+pub use compile::{compile_source, Override};
 pub use diagnostic::RuleError;
 pub use program::Program;

@@ -5,11 +5,10 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use crate::kernel::ops::delete::DeleteMode;
-use crate::kernel::ops::select::Adjacency;
 use crate::kernel::Domain;
 
 use super::expr::Expr;
+use super::operators::{ArgKind, OperatorDef};
 
 /// A compiled rule file.
 #[derive(Debug, Clone)]
@@ -279,128 +278,19 @@ impl std::ops::Deref for Step {
     }
 }
 
-#[derive(Debug, Clone)]
-pub enum Offset {
-    None,
-    Vector(Box<Vector>),
-    Normal(Scalar),
-}
-
-// One per step: variant sizes do not matter, boxing would only add noise.
-#[allow(clippy::large_enum_variant)]
+/// A step's operator, by family.
 #[derive(Debug, Clone)]
 pub enum Op {
-    Vertex {
-        at: Vector,
-        radius: Option<Scalar>,
-    },
-    Circle {
-        segments: Scalar,
-        radius: Scalar,
-        fill: bool,
-    },
-    Grid {
-        segments: [Scalar; 2],
-        size: [Scalar; 2],
-    },
-    Cube {
-        size: Scalar,
-    },
-    UvSphere {
-        segments: Scalar,
-        rings: Scalar,
-        radius: Scalar,
-    },
-    Cylinder {
-        segments: Scalar,
-        radius: Scalar,
-        radius_top: Scalar,
-        depth: Scalar,
-        caps: bool,
-    },
-    /// Appends the mesh of [`Program::resources`]`[resource]`.
-    Import {
-        resource: usize,
-        /// Merge vertices this close first.
-        weld: Option<f64>,
-        /// The file is Y-up: turn it into the Z-up kernel.
-        y_up: bool,
-    },
-    Translate {
-        offset: Vector,
-    },
-    Rotate {
-        angle_degrees: Scalar,
-        axis: Vector,
-        center: Vector,
-    },
-    Scale {
-        factor: Vector,
-        center: Vector,
-    },
-    ExtrudeVerts {
-        offset: Offset,
-    },
-    ExtrudeEdges {
-        offset: Offset,
-    },
-    ExtrudeFaces {
-        keep_original: bool,
-        offset: Offset,
-    },
-    ExtrudeRegion {
-        keep_original: bool,
-        offset: Offset,
-    },
-    InsetFaces {
-        thickness: Scalar,
-        depth: Scalar,
-    },
-    InsetRegion {
-        thickness: Scalar,
-        depth: Scalar,
-    },
-    SplitEdgesCuts {
-        cuts: Scalar,
-    },
-    SplitEdgesRatios {
-        ratios: Vec<Scalar>,
-    },
-    Triangulate,
-    Reverse,
-    RecomputeNormals {
-        outside: bool,
-    },
-    Delete {
-        mode: DeleteMode,
-    },
-    Duplicate,
-    DissolveEdges,
-    MakeFace,
-    Merge {
-        distance: Scalar,
-    },
-    Mirror {
-        point: Vector,
-        normal: Vector,
-        merge_distance: Scalar,
-    },
-    RegionExtend {
-        by: Adjacency,
-    },
-    RegionReduce {
-        by: Adjacency,
-    },
+    /// A create, kernel or whole-mesh operator ([`Family::Create`],
+    /// [`Family::Kernel`], [`Family::WholeMesh`]): its definition and its
+    /// compiled arguments.
+    Call(Call),
+    /// A G³ command.
     Command(Box<Command>),
+    /// A compound command call.
     Compound {
         index: usize,
         frame: Box<FrameParams>,
-    },
-    Skin {
-        sides: Scalar,
-        radius: Scalar,
-        joints: bool,
-        keep_wires: bool,
     },
 }
 
@@ -408,34 +298,7 @@ impl Op {
     /// The operator's name as written in rule files.
     pub fn name(&self) -> &'static str {
         match self {
-            Op::Vertex { .. } => "vertex",
-            Op::Circle { .. } => "circle",
-            Op::Grid { .. } => "grid",
-            Op::Cube { .. } => "cube",
-            Op::UvSphere { .. } => "uv_sphere",
-            Op::Cylinder { .. } => "cylinder",
-            Op::Import { .. } => "import",
-            Op::Translate { .. } => "translate",
-            Op::Rotate { .. } => "rotate",
-            Op::Scale { .. } => "scale",
-            Op::ExtrudeVerts { .. } => "extrude_verts",
-            Op::ExtrudeEdges { .. } => "extrude_edges",
-            Op::ExtrudeFaces { .. } => "extrude_faces",
-            Op::ExtrudeRegion { .. } => "extrude_region",
-            Op::InsetFaces { .. } => "inset_faces",
-            Op::InsetRegion { .. } => "inset_region",
-            Op::SplitEdgesCuts { .. } | Op::SplitEdgesRatios { .. } => "split_edges",
-            Op::Triangulate => "triangulate",
-            Op::Reverse => "reverse",
-            Op::RecomputeNormals { .. } => "recompute_normals",
-            Op::Delete { .. } => "delete",
-            Op::Duplicate => "duplicate",
-            Op::DissolveEdges => "dissolve_edges",
-            Op::MakeFace => "make_face",
-            Op::Merge { .. } => "merge",
-            Op::Mirror { .. } => "mirror",
-            Op::RegionExtend { .. } => "region_extend",
-            Op::RegionReduce { .. } => "region_reduce",
+            Op::Call(call) => call.def.name,
             Op::Command(c) => match c.kind {
                 CommandKind::CreateEdge => "create_edge",
                 CommandKind::SplitEdge => "split_edge",
@@ -444,21 +307,112 @@ impl Op {
                 CommandKind::EditNode => "edit_node",
             },
             Op::Compound { .. } => "compound",
-            Op::Skin { .. } => "skin",
         }
     }
 
     /// Whether the operator makes geometry from nothing (no selection).
     pub fn is_create(&self) -> bool {
-        matches!(
-            self,
-            Op::Vertex { .. }
-                | Op::Circle { .. }
-                | Op::Grid { .. }
-                | Op::Cube { .. }
-                | Op::UvSphere { .. }
-                | Op::Cylinder { .. }
-                | Op::Import { .. }
-        )
+        matches!(self, Op::Call(call) if call.def.is_create())
+    }
+}
+
+/// A create, kernel or whole-mesh operator with its arguments, compiled
+/// against its definition: one [`Arg`] per parameter, in the definition's
+/// order, defaults filled in.
+#[derive(Debug, Clone)]
+pub struct Call {
+    pub def: &'static OperatorDef,
+    pub args: Vec<Arg>,
+}
+
+/// A compiled argument.
+#[derive(Debug, Clone)]
+pub enum Arg {
+    /// Not written and without a default.
+    Absent,
+    Scalar(Scalar),
+    Vector(Vector),
+    Pair([Scalar; 2]),
+    List(Vec<Scalar>),
+    Bool(bool),
+    /// The index of the name among the parameter's choices.
+    Choice(usize),
+    /// The index of the file in [`Program::resources`].
+    Resource(usize),
+}
+
+impl Call {
+    fn arg(&self, key: &str) -> &Arg {
+        let i = self
+            .def
+            .params
+            .iter()
+            .position(|p| p.key == key)
+            .unwrap_or_else(|| panic!("`{}` has no parameter `{key}`", self.def.name));
+        &self.args[i]
+    }
+
+    /// A scalar parameter (`None` when absent without a default).
+    pub fn scalar(&self, key: &str) -> Option<&Scalar> {
+        match self.arg(key) {
+            Arg::Scalar(e) => Some(e),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a scalar", self.def.name),
+        }
+    }
+
+    pub fn vector(&self, key: &str) -> Option<&Vector> {
+        match self.arg(key) {
+            Arg::Vector(v) => Some(v),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a vector", self.def.name),
+        }
+    }
+
+    pub fn pair(&self, key: &str) -> Option<&[Scalar; 2]> {
+        match self.arg(key) {
+            Arg::Pair(p) => Some(p),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a pair", self.def.name),
+        }
+    }
+
+    pub fn list(&self, key: &str) -> Option<&[Scalar]> {
+        match self.arg(key) {
+            Arg::List(l) => Some(l),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a list", self.def.name),
+        }
+    }
+
+    /// A boolean parameter (`None` when absent without a default).
+    pub fn flag(&self, key: &str) -> Option<bool> {
+        match self.arg(key) {
+            Arg::Bool(b) => Some(*b),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a boolean", self.def.name),
+        }
+    }
+
+    /// The chosen name of a choice parameter.
+    pub fn choice(&self, key: &str) -> Option<&'static str> {
+        let names = match self.def.param(key).map(|p| p.kind) {
+            Some(ArgKind::Choice(names)) => names,
+            _ => panic!("`{}.{key}` is not a choice", self.def.name),
+        };
+        match self.arg(key) {
+            Arg::Choice(i) => Some(names[*i]),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a choice", self.def.name),
+        }
+    }
+
+    /// The resource index of a path parameter.
+    pub fn resource(&self, key: &str) -> Option<usize> {
+        match self.arg(key) {
+            Arg::Resource(i) => Some(*i),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a path", self.def.name),
+        }
     }
 }

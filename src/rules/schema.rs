@@ -2,10 +2,9 @@
 //! committed as `docs/graftal.schema.json`), and the conversion of a rule
 //! file, TOML or RON, to the JSON value the schema describes.
 //!
-//! The schema is written here by hand, in one place, from the same lists the
-//! parser uses ([`ast::OPERATOR_NAMES`], [`ast::COMMAND_NAMES`]); the AST's
-//! hand-written deserializers (a step's operator is whichever operator key
-//! it holds) leave nothing to derive it from. `tests/tooling.rs` keeps it in
+//! The schema of every operator is generated from the operator registry
+//! ([`super::operators`]): its parameters' kinds, defaults, bounds and
+//! documentation; the rest (steps, parameters, compounds) is written here. `tests/tooling.rs` keeps it in
 //! step with the parser and compiler: every file in `rules/` validates, and
 //! for every operator, `on` value and step key the schema accepts exactly the
 //! steps `graftal check` accepts.
@@ -18,23 +17,13 @@ use std::path::Path;
 
 use serde_json::{json, Map, Value};
 
-use super::ast::{COMMAND_NAMES, OPERATOR_NAMES};
-use super::compile::{format_of, load_text, PROPERTY_NAMES};
+use super::compile::{format_of, PROPERTY_NAMES};
 use super::diagnostic::RuleError;
+use super::diagnostic::SourceFile;
 use super::expr::BUILTIN_CONSTANT_NAMES;
+use super::operators::{self, ArgKind, Family, OperatorDef, ParamDef};
 use super::spanned::SourceFormat;
-
-/// Operators that make a shape from nothing (allowed in `[start]`).
-const CREATE_OPS: &[&str] = &[
-    "vertex",
-    "circle",
-    "grid",
-    "cube",
-    "uv_sphere",
-    "cylinder",
-    "cone",
-    "import",
-];
+use crate::kernel::Domain;
 
 /// Names parameters may not take: the compiler's element properties and
 /// built-in constants.
@@ -46,19 +35,21 @@ fn reserved_names() -> Vec<&'static str> {
         .collect()
 }
 
-/// Element kinds an operator's `on` may name; the first is the default
-/// (mirrors the compiler's rule, checked against it by the tests).
-fn allowed_on(op: &str) -> &'static [&'static str] {
-    match op {
-        "translate" | "rotate" | "scale" | "merge" | "extrude_verts" => {
-            &["verts", "edges", "faces"]
-        }
-        "extrude_edges" | "split_edges" | "dissolve_edges" | "make_face" => &["edges", "faces"],
-        "delete" | "duplicate" | "mirror" => &["faces", "edges", "verts"],
-        "create_edge" | "edit_node" => &["verts"],
-        "split_edge" | "create_face" => &["edges"],
-        _ => &["faces"],
+/// Element kinds an operator's `on` may name; the first is the default.
+fn allowed_on(def: &OperatorDef) -> Vec<&'static str> {
+    let mut on: Vec<&'static str> = def
+        .domains
+        .iter()
+        .map(|d| match d {
+            Domain::Vert => "verts",
+            Domain::Edge => "edges",
+            Domain::Face => "faces",
+        })
+        .collect();
+    if on.is_empty() {
+        on.push("faces");
     }
+    on
 }
 
 fn describe(mut schema: Value, text: &str) -> Value {
@@ -96,268 +87,58 @@ fn object(properties: Vec<(&str, Value)>, required: &[&str]) -> Value {
     o
 }
 
-fn extrude() -> Value {
-    let mut o = object(
-        vec![
-            ("offset", vector("move the extruded copy by this vector")),
-            ("distance", value("or move it this far along the normal")),
-            (
-                "keep_original",
-                boolean("faces: keep the original face, flipped, closing the prism (false)"),
-            ),
-        ],
-        &[],
-    );
-    o["not"] = json!({ "required": ["offset", "distance"] });
+/// The schema of one parameter, from its kind, bounds and documentation.
+fn parameter(p: &ParamDef) -> Value {
+    let literal_bounds = |mut number: Value| {
+        if let Some(min) = p.min {
+            number["minimum"] = json!(min);
+        }
+        if let Some(max) = p.max {
+            number["maximum"] = json!(max);
+        }
+        number
+    };
+    let schema = match p.kind {
+        ArgKind::Scalar | ArgKind::Element if p.min.is_some() || p.max.is_some() => {
+            json!({ "anyOf": [literal_bounds(json!({ "type": "number" })),
+                              { "type": "string", "minLength": 1 }] })
+        }
+        ArgKind::Scalar | ArgKind::Element => r("value"),
+        ArgKind::Vector | ArgKind::ElementVector => r("vector"),
+        ArgKind::Pair => r("pair"),
+        ArgKind::ScalarList => json!({ "type": "array", "items": r("value"), "minItems": 1 }),
+        ArgKind::Bool => json!({ "type": "boolean" }),
+        ArgKind::Choice(names) => json!({ "enum": names }),
+        ArgKind::Path => json!({ "type": "string", "minLength": 1 }),
+        ArgKind::NodeCondition => r("condition"),
+    };
+    describe(schema, p.doc)
+}
+
+/// The schema of an operator's value: its parameters, the required ones,
+/// no two exclusive ones together, nothing else.
+fn operator(def: &OperatorDef) -> Value {
+    let properties: Vec<(&str, Value)> = def.params.iter().map(|p| (p.key, parameter(p))).collect();
+    let required: Vec<&str> = def
+        .params
+        .iter()
+        .filter(|p| p.required)
+        .map(|p| p.key)
+        .collect();
+    let mut o = object(properties, &required);
+    match def.exclusive {
+        [] => {}
+        [(a, b)] => o["not"] = json!({ "required": [a, b] }),
+        pairs => {
+            o["allOf"] = Value::Array(
+                pairs
+                    .iter()
+                    .map(|(a, b)| json!({ "not": { "required": [a, b] } }))
+                    .collect(),
+            )
+        }
+    }
     o
-}
-
-fn command(name: &str) -> Value {
-    let mut props = vec![
-        ("length", value("l: length of the new edge or displacement (relative: times the preceding primitive's length)")),
-        ("radius", value("radius of the new node (default: the preceding primitive's)")),
-        ("heading", vector("H as [x, y, z] in the reference or preceding frame's (H, L, U) basis")),
-        ("up", vector("U as [x, y, z]; L = U × H")),
-        ("roll", value("fixed rotation about H, degrees")),
-        ("turn", value("fixed rotation about U, degrees")),
-        ("pitch", value("fixed rotation about L, degrees")),
-        ("vary_length", r("spread")),
-        ("vary_radius", r("spread")),
-        ("vary_roll", r("spread")),
-        ("vary_turn", r("spread")),
-        ("vary_pitch", r("spread")),
-        ("probability", describe(json!({ "anyOf": [
-            { "type": "number", "minimum": 0, "maximum": 1 },
-            { "type": "string", "minLength": 1 } ] }),
-            "chance of applying to each matched primitive, in [0, 1] (default 1)")),
-        ("relative", boolean("relative to the preceding primitive instead of the reference frame")),
-    ];
-    if name == "split_face" {
-        props.push((
-            "nodes",
-            describe(
-                r("condition"),
-                "secondary condition over the face's nodes: which to join to the new node",
-            ),
-        ));
-    }
-    object(props, &[])
-}
-
-/// The schema of an operator's value.
-fn operator(name: &str) -> Value {
-    let segments = || value("number of segments");
-    let radius = || value("radius");
-    match name {
-        "vertex" => object(
-            vec![
-                ("at", vector("position ([0, 0, 0])")),
-                ("radius", value("node radius")),
-            ],
-            &[],
-        ),
-        "circle" => object(
-            vec![
-                ("segments", segments()),
-                ("radius", radius()),
-                ("fill", boolean("fill with a face (false)")),
-            ],
-            &[],
-        ),
-        "grid" => object(
-            vec![
-                ("segments", describe(r("pair"), "[nx, ny] quads ([1, 1])")),
-                (
-                    "size",
-                    describe(r("pair"), "[sx, sy] full extents ([2, 2])"),
-                ),
-            ],
-            &[],
-        ),
-        "cube" => object(vec![("size", value("edge length (2)"))], &[]),
-        "uv_sphere" => object(
-            vec![
-                ("segments", segments()),
-                ("rings", value("number of rings (16)")),
-                ("radius", radius()),
-            ],
-            &[],
-        ),
-        "cylinder" => object(
-            vec![
-                ("segments", segments()),
-                ("radius", radius()),
-                ("radius_top", value("top radius (= radius)")),
-                ("depth", value("height along z (2)")),
-                ("caps", boolean("close the ends (true)")),
-            ],
-            &[],
-        ),
-        "cone" => object(
-            vec![
-                ("segments", segments()),
-                ("radius", radius()),
-                ("depth", value("height along z (2)")),
-                ("caps", boolean("close the base (true)")),
-            ],
-            &[],
-        ),
-        "import" => object(
-            vec![
-                (
-                    "path",
-                    json!({ "type": "string", "minLength": 1,
-                            "description": "OBJ, STL, PLY, glTF or GLB file, relative to the rule file" }),
-                ),
-                (
-                    "weld",
-                    json!({ "type": "number", "minimum": 0,
-                            "description": "merge vertices at most this far apart (0: identical positions)" }),
-                ),
-                (
-                    "up",
-                    json!({ "enum": ["y", "z"], "description": "the file's up axis (OBJ, PLY, STL)" }),
-                ),
-            ],
-            &["path"],
-        ),
-        "translate" => object(vec![("offset", vector("displacement"))], &["offset"]),
-        "rotate" => object(
-            vec![
-                ("angle", value("degrees, counter-clockwise about axis")),
-                ("axis", vector("rotation axis ([0, 0, 1])")),
-                ("center", vector("fixed point ([0, 0, 0])")),
-            ],
-            &["angle"],
-        ),
-        "scale" => object(
-            vec![
-                ("factor", vector("scale factors")),
-                ("center", vector("fixed point ([0, 0, 0])")),
-            ],
-            &["factor"],
-        ),
-        "extrude_verts" | "extrude_edges" | "extrude_faces" | "extrude_region" => extrude(),
-        "inset_faces" | "inset_region" => object(
-            vec![
-                ("thickness", value("inset width")),
-                ("depth", value("move the inner face along its normal (0)")),
-            ],
-            &["thickness"],
-        ),
-        "split_edges" => {
-            let mut o = object(
-                vec![
-                    ("cuts", value("equal parts (1 cut)")),
-                    (
-                        "ratios",
-                        json!({ "type": "array", "items": r("value"), "minItems": 1,
-                                "description": "cut positions in (0, 1), increasing, from the edge's first vertex" }),
-                    ),
-                ],
-                &[],
-            );
-            o["not"] = json!({ "required": ["cuts", "ratios"] });
-            o
-        }
-        "recompute_normals" => object(
-            vec![(
-                "outside",
-                boolean("make winding consistent and outward (true)"),
-            )],
-            &[],
-        ),
-        "delete" => object(
-            vec![(
-                "mode",
-                json!({ "enum": ["all", "faces", "faces_and_edges"],
-                        "description": "what goes with the elements (\"all\")" }),
-            )],
-            &[],
-        ),
-        "merge" => object(
-            vec![("distance", value("merge vertices within this distance"))],
-            &["distance"],
-        ),
-        "mirror" => {
-            let mut o = object(
-                vec![
-                    (
-                        "axis",
-                        json!({ "enum": ["x", "y", "z"], "description": "mirror across the plane perpendicular to this axis" }),
-                    ),
-                    ("normal", vector("or to this normal")),
-                    ("point", vector("a point of the plane ([0, 0, 0])")),
-                    ("merge_distance", value("weld distance at the seam (1e-6)")),
-                ],
-                &[],
-            );
-            o["not"] = json!({ "required": ["axis", "normal"] });
-            o
-        }
-        "region_extend" | "region_reduce" => object(
-            vec![(
-                "by",
-                json!({ "enum": ["edge", "vert"], "description": "adjacency (\"edge\")" }),
-            )],
-            &[],
-        ),
-        "skin" => object(
-            vec![
-                ("sides", value("sides of the tube cross-section (8)")),
-                ("radius", value("radius for nodes without one (0.1)")),
-                ("joints", boolean("spheres at joints (true)")),
-                ("keep_wires", boolean("keep the wire edges (false)")),
-            ],
-            &[],
-        ),
-        c if COMMAND_NAMES.contains(&c) => command(c),
-        // triangulate, reverse, duplicate, dissolve_edges, make_face
-        _ => object(vec![], &[]),
-    }
-}
-
-fn operator_description(name: &str) -> &'static str {
-    match name {
-        "vertex" => "create: one vertex (node)",
-        "circle" => "create: a circle in the XY plane",
-        "grid" => "create: a grid of quads in the XY plane",
-        "cube" => "create: a centred cube",
-        "uv_sphere" => "create: a UV sphere",
-        "cylinder" => "create: a cylinder along z",
-        "cone" => "create: a cone along z",
-        "import" => "create: a mesh from a file",
-        "translate" => "move the selected elements' vertices",
-        "rotate" => "rotate the selected elements' vertices",
-        "scale" => "scale the selected elements' vertices",
-        "extrude_verts" => "extrude vertices into edges",
-        "extrude_edges" => "extrude edges into faces",
-        "extrude_faces" => "extrude each face separately",
-        "extrude_region" => "extrude the faces as one region",
-        "inset_faces" => "inset each face separately",
-        "inset_region" => "inset the faces as one region",
-        "split_edges" => "split edges into parts",
-        "triangulate" => "triangulate faces",
-        "reverse" => "reverse face winding",
-        "recompute_normals" => "make winding consistent",
-        "delete" => "delete elements",
-        "duplicate" => "duplicate elements",
-        "dissolve_edges" => "join the two faces of each edge",
-        "make_face" => "make a face from a closed ring of edges",
-        "merge" => "merge vertices by distance",
-        "mirror" => "mirror across a plane, welding the seam",
-        "region_extend" => "grow the face selection",
-        "region_reduce" => "shrink the face selection",
-        "create_edge" => "G³: new node n₁ = n₀ + l·H and edge (n₀, n₁) on every matching node",
-        "split_edge" => "G³: split every matching edge at n₀ + l·H",
-        "create_face" => "G³: a triangle on every matching edge",
-        "split_face" => {
-            "G³: a fan from a new node at the barycentre (+ l·H) of every matching face"
-        }
-        "edit_node" => "G³: move every matching node by l·H, set its radius",
-        "skin" => "turn every wire edge into a tapered tube",
-        _ => "operator",
-    }
 }
 
 /// The schema of one step. `create` admits the create operators (not in
@@ -370,12 +151,11 @@ fn step(kind: StepKind) -> Value {
         json!({ "type": "string", "pattern": "^[^/#]+$",
                 "description": "step name (default step1, step2, …); `from` and the stats use it" }),
     );
-    let ops: Vec<&str> = OPERATOR_NAMES
+    let ops: Vec<&'static OperatorDef> = operators::OPERATORS
         .iter()
-        .copied()
         .filter(|op| match kind {
-            StepKind::Start => CREATE_OPS.contains(op),
-            StepKind::Compound => !CREATE_OPS.contains(op),
+            StepKind::Start => op.is_create(),
+            StepKind::Compound => !op.is_create(),
             StepKind::Any => true,
         })
         .collect();
@@ -421,8 +201,8 @@ fn step(kind: StepKind) -> Value {
     }
     for op in &ops {
         props.insert(
-            (*op).into(),
-            describe(r(&format!("op_{op}")), operator_description(op)),
+            op.name.into(),
+            describe(r(&format!("op_{}", op.name)), op.summary),
         );
     }
     // Exactly one of: an operator, `rule`, `compound`; with the keys each allows.
@@ -431,12 +211,12 @@ fn step(kind: StepKind) -> Value {
         Value::Object(keys.iter().map(|k| ((*k).into(), json!(false))).collect())
     };
     for op in &ops {
-        let mut choice = json!({ "required": [op] });
+        let mut choice = json!({ "required": [op.name] });
         if kind == StepKind::Start {
             choices.push(choice);
             continue;
         }
-        let restricted = if CREATE_OPS.contains(op) || *op == "skin" {
+        let restricted = if op.is_create() || op.family == Family::WholeMesh {
             no(&[
                 "select",
                 "from",
@@ -446,7 +226,7 @@ fn step(kind: StepKind) -> Value {
                 "on_intersection",
             ])
         } else {
-            let mut p = if COMMAND_NAMES.contains(op) {
+            let mut p = if op.family == Family::Command {
                 Map::new()
             } else {
                 match no(&["policy", "tolerance", "on_intersection"]) {
@@ -455,7 +235,7 @@ fn step(kind: StepKind) -> Value {
                 }
             };
             // `"vertices"` is accepted for `"verts"`.
-            let mut on: Vec<&str> = allowed_on(op).to_vec();
+            let mut on: Vec<&str> = allowed_on(op);
             if on.contains(&"verts") {
                 on.push("vertices");
             }
@@ -635,8 +415,8 @@ pub fn schema() -> Value {
     definitions.insert("step".into(), step(StepKind::Any));
     definitions.insert("compound_step".into(), step(StepKind::Compound));
     definitions.insert("start".into(), step(StepKind::Start));
-    for op in OPERATOR_NAMES {
-        definitions.insert(format!("op_{op}"), operator(op));
+    for op in operators::OPERATORS {
+        definitions.insert(format!("op_{}", op.name), operator(op));
     }
 
     let mut root = object(
@@ -738,10 +518,9 @@ pub fn to_json(text: &str, format: SourceFormat) -> Result<Value, String> {
 }
 
 /// A rule file as the JSON value the schema describes.
-pub fn file_to_json(path: &Path) -> Result<Value, RuleError> {
-    let file = load_text(path)?;
-    let format = format_of(path).map_err(|m| RuleError::at(&file, None, m))?;
-    to_json(&file.text, format).map_err(|m| RuleError::at(&file, None, m))
+pub fn file_to_json(file: &SourceFile) -> Result<Value, RuleError> {
+    let format = format_of(Path::new(&file.name)).map_err(|m| RuleError::at(file, None, m))?;
+    to_json(&file.text, format).map_err(|m| RuleError::at(file, None, m))
 }
 
 fn ron_to_json(v: super::ron::Value) -> Value {

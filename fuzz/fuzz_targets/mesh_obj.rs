@@ -1,0 +1,13 @@
+//! The OBJ reader (at most 1 MiB); an accepted mesh is written back as OBJ
+//! and must read again.
+#![no_main]
+
+#[path = "../common/mod.rs"]
+mod common;
+
+use graftal::io::MeshFormat;
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    common::check_reader(data, MeshFormat::Obj, &[MeshFormat::Obj]);
+});

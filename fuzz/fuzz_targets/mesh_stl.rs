@@ -1,0 +1,17 @@
+//! The STL reader, ASCII or binary by content (at most 1 MiB); an accepted
+//! mesh is written back as binary and ASCII STL and must read again.
+#![no_main]
+
+#[path = "../common/mod.rs"]
+mod common;
+
+use graftal::io::MeshFormat;
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    common::check_reader(
+        data,
+        MeshFormat::StlBinary,
+        &[MeshFormat::StlBinary, MeshFormat::StlAscii],
+    );
+});

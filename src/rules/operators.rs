@@ -1,0 +1,821 @@
+//! The operator registry: one definition per rule-file operator (in the
+//! spirit of BMesh's `bmesh_opdefines`). Each [`OperatorDef`] says the
+//! operator's key, its family, the element kinds it selects, its
+//! parameters (kind, default, bounds, documentation) and a summary. The
+//! parser, the compiler, the JSON Schema, the linter, `explain` and the
+//! documentation test all read this table; the engine's implementations
+//! are matched on [`OpId`] (exhaustively: an operator without one does not
+//! compile). ARCHITECTURE.md ("How to add an operator") walks through it.
+
+use crate::kernel::Domain;
+
+/// Every operator, by identity (the engine's dispatch is a `match` on it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum OpId {
+    Vertex,
+    Circle,
+    Grid,
+    Cube,
+    UvSphere,
+    Cylinder,
+    Cone,
+    Import,
+    Translate,
+    Rotate,
+    Scale,
+    ExtrudeVerts,
+    ExtrudeEdges,
+    ExtrudeFaces,
+    ExtrudeRegion,
+    InsetFaces,
+    InsetRegion,
+    SplitEdges,
+    Triangulate,
+    Reverse,
+    RecomputeNormals,
+    Delete,
+    Duplicate,
+    DissolveEdges,
+    MakeFace,
+    Merge,
+    Mirror,
+    RegionExtend,
+    RegionReduce,
+    CreateEdge,
+    SplitEdge,
+    CreateFace,
+    SplitFace,
+    EditNode,
+    Skin,
+}
+
+/// How an operator runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// Makes geometry from nothing (no selection); allowed in `[start]`.
+    Create,
+    /// A kernel operator on the selected elements.
+    Kernel,
+    /// Works on the whole mesh (no selection).
+    WholeMesh,
+    /// A G³ command (thesis 003 §2.4.5): planned on generation Gₙ, then applied.
+    Command,
+}
+
+/// What a parameter takes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArgKind {
+    /// A number or an expression over parameters.
+    Scalar,
+    /// A number or expression over parameters and the matched primitive's
+    /// properties, evaluated per primitive (G³ commands).
+    Element,
+    /// `[x, y, z]` of scalars, or one scalar for all three.
+    Vector,
+    /// [`ArgKind::Vector`] of per-primitive values.
+    ElementVector,
+    /// `[a, b]` of scalars.
+    Pair,
+    /// A non-empty list of scalars.
+    ScalarList,
+    Bool,
+    /// One of these names.
+    Choice(&'static [&'static str]),
+    /// A file, relative to the rule file.
+    Path,
+    /// A condition over the nodes of the matched face.
+    NodeCondition,
+}
+
+/// A parameter's value when the file gives none.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Default {
+    /// Absent: the operator does without.
+    None,
+    Number(f64),
+    Vector([f64; 3]),
+    Pair([f64; 2]),
+    Bool(bool),
+    /// The index of a [`ArgKind::Choice`] name.
+    Choice(usize),
+    /// The value of another parameter of the same operator.
+    SameAs(&'static str),
+}
+
+/// One parameter of an operator.
+#[derive(Debug, Clone, Copy)]
+pub struct ParamDef {
+    pub key: &'static str,
+    pub kind: ArgKind,
+    pub default: Default,
+    pub required: bool,
+    /// Literal numbers must be at least this (an error before the run).
+    pub min: Option<f64>,
+    /// Literal numbers must be at most this.
+    pub max: Option<f64>,
+    pub doc: &'static str,
+}
+
+/// One operator.
+#[derive(Debug)]
+pub struct OperatorDef {
+    pub id: OpId,
+    /// The key in rule files.
+    pub name: &'static str,
+    pub family: Family,
+    /// Element kinds `on` may name, the default first (empty: no selection).
+    pub domains: &'static [Domain],
+    pub params: &'static [ParamDef],
+    /// Parameter pairs that exclude each other.
+    pub exclusive: &'static [(&'static str, &'static str)],
+    /// One line for the schema, `explain` and the documentation.
+    pub summary: &'static str,
+}
+
+impl OperatorDef {
+    pub fn param(&self, key: &str) -> Option<&ParamDef> {
+        self.params.iter().find(|p| p.key == key)
+    }
+
+    /// Whether it makes geometry from nothing (and may start a file).
+    pub fn is_create(&self) -> bool {
+        self.family == Family::Create
+    }
+
+    /// The keys of its parameters, in table order.
+    pub fn keys(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.params.iter().map(|p| p.key)
+    }
+}
+
+/// The operator named `name`.
+pub fn find(name: &str) -> Option<&'static OperatorDef> {
+    OPERATORS.iter().find(|d| d.name == name)
+}
+
+/// The operator of identity `id`.
+pub fn def(id: OpId) -> &'static OperatorDef {
+    OPERATORS
+        .iter()
+        .find(|d| d.id == id)
+        .expect("every OpId is registered")
+}
+
+/// Every operator key, in table order.
+pub fn names() -> impl Iterator<Item = &'static str> {
+    OPERATORS.iter().map(|d| d.name)
+}
+
+const fn param(key: &'static str, kind: ArgKind, default: Default, doc: &'static str) -> ParamDef {
+    ParamDef {
+        key,
+        kind,
+        default,
+        required: false,
+        min: None,
+        max: None,
+        doc,
+    }
+}
+
+const fn required(key: &'static str, kind: ArgKind, doc: &'static str) -> ParamDef {
+    ParamDef {
+        key,
+        kind,
+        default: Default::None,
+        required: true,
+        min: None,
+        max: None,
+        doc,
+    }
+}
+
+use ArgKind::*;
+use Domain::{Edge, Face, Vert};
+
+const SEGMENTS: ParamDef = param(
+    "segments",
+    Scalar,
+    Default::Number(32.0),
+    "number of segments (32)",
+);
+const RADIUS: ParamDef = param("radius", Scalar, Default::Number(1.0), "radius (1)");
+const DEPTH: ParamDef = param("depth", Scalar, Default::Number(2.0), "height along z (2)");
+const CENTER: ParamDef = param(
+    "center",
+    Vector,
+    Default::Vector([0.0; 3]),
+    "fixed point ([0, 0, 0])",
+);
+
+const EXTRUDE: &[ParamDef] = &[
+    param(
+        "offset",
+        Vector,
+        Default::None,
+        "move the extruded copy by this vector",
+    ),
+    param(
+        "distance",
+        Scalar,
+        Default::None,
+        "or move it this far along the normal",
+    ),
+    param(
+        "keep_original",
+        Bool,
+        Default::Bool(false),
+        "faces: keep the original face, flipped, closing the prism (false)",
+    ),
+];
+
+const INSET: &[ParamDef] = &[
+    required("thickness", Scalar, "inset width"),
+    param(
+        "depth",
+        Scalar,
+        Default::Number(0.0),
+        "move the inner face along its normal (0)",
+    ),
+];
+
+const REGION: &[ParamDef] = &[param(
+    "by",
+    Choice(&["edge", "vert"]),
+    Default::Choice(0),
+    "adjacency (\"edge\")",
+)];
+
+const fn spread(key: &'static str, doc: &'static str) -> ParamDef {
+    ParamDef {
+        key,
+        kind: Element,
+        default: Default::None,
+        required: false,
+        min: Some(0.0),
+        max: None,
+        doc,
+    }
+}
+
+/// The parameters of a G³ command (thesis 003 §2.4.3); `split_face` adds `nodes`.
+macro_rules! command_params {
+    ($($extra:expr),*) => {
+        &[
+            param("length", Element, Default::None, "l: length of the new edge or displacement (relative: times the preceding primitive's length)"),
+            param("radius", Element, Default::None, "radius of the new node (default: the preceding primitive's)"),
+            param("heading", ElementVector, Default::None, "H as [x, y, z] in the reference or preceding frame's (H, L, U) basis"),
+            param("up", ElementVector, Default::None, "U as [x, y, z]; L = U × H"),
+            param("turn", Element, Default::None, "fixed rotation about U, degrees"),
+            param("pitch", Element, Default::None, "fixed rotation about L, degrees"),
+            param("roll", Element, Default::None, "fixed rotation about H, degrees"),
+            spread("vary_length", "σ: uniform in (−σ, σ) added to the length"),
+            spread("vary_radius", "σ: uniform in (−σ, σ) added to the radius"),
+            spread("vary_turn", "σ: uniform in (−σ, σ) degrees added to the turn"),
+            spread("vary_pitch", "σ: uniform in (−σ, σ) degrees added to the pitch"),
+            spread("vary_roll", "σ: uniform in (−σ, σ) degrees added to the roll"),
+            ParamDef {
+                key: "probability",
+                kind: Element,
+                default: Default::None,
+                required: false,
+                min: Some(0.0),
+                max: Some(1.0),
+                doc: "chance of applying to each matched primitive, in [0, 1] (default 1)",
+            },
+            param("relative", Bool, Default::None, "relative to the preceding primitive instead of the reference frame"),
+            $($extra),*
+        ]
+    };
+}
+
+const COMMAND: &[ParamDef] = command_params!();
+const SPLIT_FACE: &[ParamDef] = command_params!(param(
+    "nodes",
+    NodeCondition,
+    Default::None,
+    "secondary condition over the face's nodes: which to join to the new node"
+));
+
+const ANY: &[Domain] = &[Vert, Edge, Face];
+const FACES: &[Domain] = &[Face];
+
+/// The registry.
+pub static OPERATORS: &[OperatorDef] = &[
+    OperatorDef {
+        id: OpId::Vertex,
+        name: "vertex",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            param(
+                "at",
+                Vector,
+                Default::Vector([0.0; 3]),
+                "position ([0, 0, 0])",
+            ),
+            param("radius", Scalar, Default::None, "node radius"),
+        ],
+        exclusive: &[],
+        summary: "create: one vertex (node)",
+    },
+    OperatorDef {
+        id: OpId::Circle,
+        name: "circle",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            SEGMENTS,
+            RADIUS,
+            param(
+                "fill",
+                Bool,
+                Default::Bool(false),
+                "fill with a face (false)",
+            ),
+        ],
+        exclusive: &[],
+        summary: "create: a circle in the XY plane",
+    },
+    OperatorDef {
+        id: OpId::Grid,
+        name: "grid",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            param(
+                "segments",
+                Pair,
+                Default::Pair([1.0, 1.0]),
+                "[nx, ny] quads ([1, 1])",
+            ),
+            param(
+                "size",
+                Pair,
+                Default::Pair([2.0, 2.0]),
+                "[sx, sy] full extents ([2, 2])",
+            ),
+        ],
+        exclusive: &[],
+        summary: "create: a grid of quads in the XY plane",
+    },
+    OperatorDef {
+        id: OpId::Cube,
+        name: "cube",
+        family: Family::Create,
+        domains: &[],
+        params: &[param(
+            "size",
+            Scalar,
+            Default::Number(2.0),
+            "edge length (2)",
+        )],
+        exclusive: &[],
+        summary: "create: a centred cube",
+    },
+    OperatorDef {
+        id: OpId::UvSphere,
+        name: "uv_sphere",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            SEGMENTS,
+            param(
+                "rings",
+                Scalar,
+                Default::Number(16.0),
+                "number of rings (16)",
+            ),
+            RADIUS,
+        ],
+        exclusive: &[],
+        summary: "create: a UV sphere",
+    },
+    OperatorDef {
+        id: OpId::Cylinder,
+        name: "cylinder",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            SEGMENTS,
+            RADIUS,
+            param(
+                "radius_top",
+                Scalar,
+                Default::SameAs("radius"),
+                "top radius (= radius)",
+            ),
+            DEPTH,
+            param("caps", Bool, Default::Bool(true), "close the ends (true)"),
+        ],
+        exclusive: &[],
+        summary: "create: a cylinder along z",
+    },
+    OperatorDef {
+        id: OpId::Cone,
+        name: "cone",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            SEGMENTS,
+            RADIUS,
+            DEPTH,
+            param("caps", Bool, Default::Bool(true), "close the base (true)"),
+        ],
+        exclusive: &[],
+        summary: "create: a cone along z",
+    },
+    OperatorDef {
+        id: OpId::Import,
+        name: "import",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            required(
+                "path",
+                Path,
+                "OBJ, STL, PLY, glTF or GLB file, relative to the rule file",
+            ),
+            ParamDef {
+                key: "weld",
+                kind: Scalar,
+                default: Default::None,
+                required: false,
+                min: Some(0.0),
+                max: None,
+                doc: "merge vertices at most this far apart (0: identical positions)",
+            },
+            param(
+                "up",
+                Choice(&["z", "y"]),
+                Default::Choice(0),
+                "the file's up axis (OBJ, PLY, STL; \"z\")",
+            ),
+        ],
+        exclusive: &[],
+        summary: "create: a mesh from a file",
+    },
+    OperatorDef {
+        id: OpId::Translate,
+        name: "translate",
+        family: Family::Kernel,
+        domains: ANY,
+        params: &[required("offset", Vector, "displacement")],
+        exclusive: &[],
+        summary: "move the selected elements' vertices",
+    },
+    OperatorDef {
+        id: OpId::Rotate,
+        name: "rotate",
+        family: Family::Kernel,
+        domains: ANY,
+        params: &[
+            required("angle", Scalar, "degrees, counter-clockwise about axis"),
+            param(
+                "axis",
+                Vector,
+                Default::Vector([0.0, 0.0, 1.0]),
+                "rotation axis ([0, 0, 1])",
+            ),
+            CENTER,
+        ],
+        exclusive: &[],
+        summary: "rotate the selected elements' vertices",
+    },
+    OperatorDef {
+        id: OpId::Scale,
+        name: "scale",
+        family: Family::Kernel,
+        domains: ANY,
+        params: &[required("factor", Vector, "scale factors"), CENTER],
+        exclusive: &[],
+        summary: "scale the selected elements' vertices",
+    },
+    OperatorDef {
+        id: OpId::ExtrudeVerts,
+        name: "extrude_verts",
+        family: Family::Kernel,
+        domains: ANY,
+        params: EXTRUDE,
+        exclusive: &[("offset", "distance")],
+        summary: "extrude vertices into edges",
+    },
+    OperatorDef {
+        id: OpId::ExtrudeEdges,
+        name: "extrude_edges",
+        family: Family::Kernel,
+        domains: &[Edge, Face],
+        params: EXTRUDE,
+        exclusive: &[("offset", "distance")],
+        summary: "extrude edges into faces",
+    },
+    OperatorDef {
+        id: OpId::ExtrudeFaces,
+        name: "extrude_faces",
+        family: Family::Kernel,
+        domains: FACES,
+        params: EXTRUDE,
+        exclusive: &[("offset", "distance")],
+        summary: "extrude each face separately",
+    },
+    OperatorDef {
+        id: OpId::ExtrudeRegion,
+        name: "extrude_region",
+        family: Family::Kernel,
+        domains: FACES,
+        params: EXTRUDE,
+        exclusive: &[("offset", "distance")],
+        summary: "extrude the faces as one region",
+    },
+    OperatorDef {
+        id: OpId::InsetFaces,
+        name: "inset_faces",
+        family: Family::Kernel,
+        domains: FACES,
+        params: INSET,
+        exclusive: &[],
+        summary: "inset each face separately",
+    },
+    OperatorDef {
+        id: OpId::InsetRegion,
+        name: "inset_region",
+        family: Family::Kernel,
+        domains: FACES,
+        params: INSET,
+        exclusive: &[],
+        summary: "inset the faces as one region",
+    },
+    OperatorDef {
+        id: OpId::SplitEdges,
+        name: "split_edges",
+        family: Family::Kernel,
+        domains: &[Edge, Face],
+        params: &[
+            param("cuts", Scalar, Default::None, "equal parts (1 cut)"),
+            param(
+                "ratios",
+                ScalarList,
+                Default::None,
+                "cut positions in (0, 1), increasing, from the edge's first vertex",
+            ),
+        ],
+        exclusive: &[("cuts", "ratios")],
+        summary: "split edges into parts",
+    },
+    OperatorDef {
+        id: OpId::Triangulate,
+        name: "triangulate",
+        family: Family::Kernel,
+        domains: FACES,
+        params: &[],
+        exclusive: &[],
+        summary: "triangulate faces",
+    },
+    OperatorDef {
+        id: OpId::Reverse,
+        name: "reverse",
+        family: Family::Kernel,
+        domains: FACES,
+        params: &[],
+        exclusive: &[],
+        summary: "reverse face winding",
+    },
+    OperatorDef {
+        id: OpId::RecomputeNormals,
+        name: "recompute_normals",
+        family: Family::Kernel,
+        domains: FACES,
+        params: &[param(
+            "outside",
+            Bool,
+            Default::Bool(true),
+            "make winding consistent and outward (true)",
+        )],
+        exclusive: &[],
+        summary: "make winding consistent",
+    },
+    OperatorDef {
+        id: OpId::Delete,
+        name: "delete",
+        family: Family::Kernel,
+        domains: &[Face, Edge, Vert],
+        params: &[param(
+            "mode",
+            Choice(&["all", "faces", "faces_and_edges"]),
+            Default::Choice(0),
+            "what goes with the elements (\"all\")",
+        )],
+        exclusive: &[],
+        summary: "delete elements",
+    },
+    OperatorDef {
+        id: OpId::Duplicate,
+        name: "duplicate",
+        family: Family::Kernel,
+        domains: &[Face, Edge, Vert],
+        params: &[],
+        exclusive: &[],
+        summary: "duplicate elements",
+    },
+    OperatorDef {
+        id: OpId::DissolveEdges,
+        name: "dissolve_edges",
+        family: Family::Kernel,
+        domains: &[Edge, Face],
+        params: &[],
+        exclusive: &[],
+        summary: "dissolve regions of edges into single faces",
+    },
+    OperatorDef {
+        id: OpId::MakeFace,
+        name: "make_face",
+        family: Family::Kernel,
+        domains: &[Edge, Face],
+        params: &[],
+        exclusive: &[],
+        summary: "make a face from a closed ring of edges",
+    },
+    OperatorDef {
+        id: OpId::Merge,
+        name: "merge",
+        family: Family::Kernel,
+        domains: ANY,
+        params: &[required(
+            "distance",
+            Scalar,
+            "merge vertices within this distance",
+        )],
+        exclusive: &[],
+        summary: "merge vertices by distance",
+    },
+    OperatorDef {
+        id: OpId::Mirror,
+        name: "mirror",
+        family: Family::Kernel,
+        domains: &[Face, Edge, Vert],
+        params: &[
+            param(
+                "axis",
+                Choice(&["x", "y", "z"]),
+                Default::None,
+                "mirror across the plane perpendicular to this axis",
+            ),
+            param(
+                "normal",
+                Vector,
+                Default::Vector([1.0, 0.0, 0.0]),
+                "or to this normal",
+            ),
+            param(
+                "point",
+                Vector,
+                Default::Vector([0.0; 3]),
+                "a point of the plane ([0, 0, 0])",
+            ),
+            param(
+                "merge_distance",
+                Scalar,
+                Default::Number(1e-6),
+                "weld distance at the seam (1e-6)",
+            ),
+        ],
+        exclusive: &[("axis", "normal")],
+        summary: "mirror across a plane, welding the seam",
+    },
+    OperatorDef {
+        id: OpId::RegionExtend,
+        name: "region_extend",
+        family: Family::Kernel,
+        domains: FACES,
+        params: REGION,
+        exclusive: &[],
+        summary: "grow the face selection",
+    },
+    OperatorDef {
+        id: OpId::RegionReduce,
+        name: "region_reduce",
+        family: Family::Kernel,
+        domains: FACES,
+        params: REGION,
+        exclusive: &[],
+        summary: "shrink the face selection",
+    },
+    OperatorDef {
+        id: OpId::CreateEdge,
+        name: "create_edge",
+        family: Family::Command,
+        domains: &[Vert],
+        params: COMMAND,
+        exclusive: &[],
+        summary: "G³: new node n₁ = n₀ + l·H and edge (n₀, n₁) on every matching node",
+    },
+    OperatorDef {
+        id: OpId::SplitEdge,
+        name: "split_edge",
+        family: Family::Command,
+        domains: &[Edge],
+        params: COMMAND,
+        exclusive: &[],
+        summary: "G³: split every matching edge at n₀ + l·H",
+    },
+    OperatorDef {
+        id: OpId::CreateFace,
+        name: "create_face",
+        family: Family::Command,
+        domains: &[Edge],
+        params: COMMAND,
+        exclusive: &[],
+        summary: "G³: a triangle on every matching edge",
+    },
+    OperatorDef {
+        id: OpId::SplitFace,
+        name: "split_face",
+        family: Family::Command,
+        domains: FACES,
+        params: SPLIT_FACE,
+        exclusive: &[],
+        summary: "G³: a fan from a new node at the barycentre (+ l·H) of every matching face",
+    },
+    OperatorDef {
+        id: OpId::EditNode,
+        name: "edit_node",
+        family: Family::Command,
+        domains: &[Vert],
+        params: COMMAND,
+        exclusive: &[],
+        summary: "G³: move every matching node by l·H, set its radius",
+    },
+    OperatorDef {
+        id: OpId::Skin,
+        name: "skin",
+        family: Family::WholeMesh,
+        domains: &[Edge],
+        params: &[
+            param(
+                "sides",
+                Scalar,
+                Default::Number(8.0),
+                "sides of the tube cross-section (8)",
+            ),
+            param(
+                "radius",
+                Scalar,
+                Default::Number(0.1),
+                "radius for nodes without one (0.1)",
+            ),
+            param(
+                "joints",
+                Bool,
+                Default::Bool(true),
+                "spheres at branch nodes (true)",
+            ),
+            param(
+                "keep_wires",
+                Bool,
+                Default::Bool(false),
+                "keep the wire edges (false)",
+            ),
+        ],
+        exclusive: &[],
+        summary: "turn every wire edge into a tapered tube",
+    },
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_ids_are_unique_and_parameters_consistent() {
+        for (i, a) in OPERATORS.iter().enumerate() {
+            for b in &OPERATORS[i + 1..] {
+                assert!(a.name != b.name && a.id != b.id, "{} twice", a.name);
+            }
+            assert_eq!(def(a.id).name, a.name);
+            for (k, p) in a.params.iter().enumerate() {
+                assert!(
+                    a.params[k + 1..].iter().all(|q| q.key != p.key),
+                    "{}.{}",
+                    a.name,
+                    p.key
+                );
+                if let Default::SameAs(other) = p.default {
+                    assert!(a.param(other).is_some(), "{}.{}", a.name, p.key);
+                }
+                if let (Choice(names), Default::Choice(i)) = (p.kind, p.default) {
+                    assert!(i < names.len());
+                }
+                assert!(!p.required || p.default == Default::None);
+            }
+            for (x, y) in a.exclusive {
+                assert!(a.param(x).is_some() && a.param(y).is_some(), "{}", a.name);
+            }
+            assert_eq!(
+                a.domains.is_empty(),
+                a.family == Family::Create,
+                "{}",
+                a.name
+            );
+        }
+    }
+}
