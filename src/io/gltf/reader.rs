@@ -1,0 +1,776 @@
+//! Reading `.gltf` and `.glb` (see the module overview in `gltf`).
+
+use super::*;
+
+/// Decodes `.gltf` JSON or `.glb` (detected by the `glTF` magic); `path` names the file in
+/// errors. External buffer files are refused: see [`decode_with`].
+pub fn decode(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
+    decode_with(bytes, path, &mut crate::io::no_external_files)
+}
+
+/// [`decode`] with `resolve` supplying external buffers (URIs relative to the file).
+pub fn decode_with(
+    bytes: &[u8],
+    path: &Path,
+    resolve: &mut crate::io::Resolve,
+) -> Result<IndexedMesh, IoError> {
+    let malformed = |message: String| IoError::Malformed {
+        path: path.to_path_buf(),
+        message,
+    };
+    let (json_bytes, blob) = if bytes.starts_with(b"glTF") {
+        split_glb(bytes, path)?
+    } else {
+        (bytes, None)
+    };
+    let mut value: json::Value = serde_json::from_slice(json_bytes)
+        .map_err(|e| malformed(format!("invalid glTF JSON: {e}")))?;
+    let custom = take_custom_attributes(&mut value);
+    // glTF allows scenes without `nodes` (our empty files have one); gltf-json requires it.
+    if let Some(scenes) = value.get_mut("scenes").and_then(|s| s.as_array_mut()) {
+        for scene in scenes {
+            if let Some(scene) = scene.as_object_mut() {
+                scene
+                    .entry("nodes")
+                    .or_insert_with(|| json::Value::Array(Vec::new()));
+            }
+        }
+    }
+    let root: json::Root = serde_json::from_value(value)
+        .map_err(|e| malformed(format!("invalid glTF document: {e}")))?;
+    if !root.asset.version.starts_with("2.") {
+        return Err(malformed(format!(
+            "unsupported glTF version {:?} (expected 2.x)",
+            root.asset.version
+        )));
+    }
+    // Quantized attributes are read (positions; the rest is not used).
+    const READ_EXTENSIONS: &[&str] = &["KHR_mesh_quantization"];
+    if let Some(ext) = root
+        .extensions_required
+        .iter()
+        .find(|e| !READ_EXTENSIONS.contains(&e.as_str()))
+    {
+        return Err(malformed(format!("requires unsupported extension {ext}")));
+    }
+    let buffers = load_buffers(&root, blob, path, resolve)?;
+    Reader {
+        root: &root,
+        buffers: &buffers,
+        custom: &custom,
+        path,
+    }
+    .read()
+}
+
+/// Splits a GLB container into its JSON chunk and optional BIN chunk.
+pub(super) fn split_glb<'a>(
+    bytes: &'a [u8],
+    path: &Path,
+) -> Result<(&'a [u8], Option<&'a [u8]>), IoError> {
+    let truncated = |offset: usize, expected: u64| IoError::Truncated {
+        path: path.to_path_buf(),
+        what: "GLB",
+        offset: offset as u64,
+        expected,
+    };
+    let u32_at = |at: usize| {
+        bytes
+            .get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let (Some(version), Some(length)) = (u32_at(4), u32_at(8)) else {
+        return Err(truncated(bytes.len(), 12));
+    };
+    if version != 2 {
+        return Err(IoError::Malformed {
+            path: path.to_path_buf(),
+            message: format!("unsupported GLB version {version} (expected 2)"),
+        });
+    }
+    let length = length as usize;
+    if length > bytes.len() {
+        return Err(truncated(bytes.len(), length as u64));
+    }
+    let bytes = &bytes[..length];
+    let mut at = 12;
+    let mut json = None;
+    let mut bin = None;
+    while at < bytes.len() {
+        let (Some(chunk_len), Some(kind)) = (u32_at(at), u32_at(at + 4)) else {
+            return Err(truncated(bytes.len(), at as u64 + 8));
+        };
+        if at + 8 > bytes.len() {
+            return Err(truncated(bytes.len(), at as u64 + 8));
+        }
+        let start = at + 8;
+        let end = start as u64 + u64::from(chunk_len);
+        if end > bytes.len() as u64 {
+            return Err(truncated(bytes.len(), end));
+        }
+        let data = &bytes[start..end as usize];
+        match &kind.to_le_bytes() {
+            b"JSON" if json.is_none() => json = Some(data),
+            b"BIN\0" if bin.is_none() && json.is_some() => bin = Some(data),
+            _ => {}
+        }
+        at = end as usize;
+    }
+    let json = json.ok_or_else(|| IoError::Malformed {
+        path: path.to_path_buf(),
+        message: "GLB has no JSON chunk".into(),
+    })?;
+    Ok((json, bin))
+}
+
+/// Removes `_NAME` entries from every primitive's attributes, returning them per mesh and
+/// primitive as (NAME without the underscore, accessor index).
+#[allow(clippy::type_complexity)]
+pub(super) fn take_custom_attributes(value: &mut json::Value) -> Vec<Vec<Vec<(String, u64)>>> {
+    let mut custom = Vec::new();
+    let Some(meshes) = value.get_mut("meshes").and_then(|m| m.as_array_mut()) else {
+        return custom;
+    };
+    for mesh in meshes {
+        let mut per_mesh = Vec::new();
+        if let Some(primitives) = mesh.get_mut("primitives").and_then(|p| p.as_array_mut()) {
+            for primitive in primitives {
+                let mut found = Vec::new();
+                if let Some(attributes) = primitive
+                    .get_mut("attributes")
+                    .and_then(|a| a.as_object_mut())
+                {
+                    let keys: Vec<String> = attributes
+                        .keys()
+                        .filter(|k| k.starts_with('_'))
+                        .cloned()
+                        .collect();
+                    for key in keys {
+                        if let Some(index) = attributes.remove(&key).and_then(|v| v.as_u64()) {
+                            found.push((key[1..].to_string(), index));
+                        }
+                    }
+                }
+                per_mesh.push(found);
+            }
+        }
+        custom.push(per_mesh);
+    }
+    custom
+}
+
+pub(super) fn load_buffers<'a>(
+    root: &json::Root,
+    blob: Option<&'a [u8]>,
+    path: &Path,
+    resolve: &mut crate::io::Resolve,
+) -> Result<Vec<Cow<'a, [u8]>>, IoError> {
+    let malformed = |message: String| IoError::Malformed {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut buffers = Vec::with_capacity(root.buffers.len());
+    for (i, buffer) in root.buffers.iter().enumerate() {
+        let data: Cow<[u8]> =
+            match buffer.uri.as_deref() {
+                None => Cow::Borrowed(blob.ok_or_else(|| {
+                    malformed(format!(
+                        "buffer {i} has no URI and there is no GLB binary chunk"
+                    ))
+                })?),
+                Some(uri) if uri.starts_with("data:") => {
+                    let (meta, payload) = uri.split_once(',').unwrap_or((uri, ""));
+                    if !meta.ends_with(";base64") {
+                        return Err(malformed(format!(
+                            "buffer {i}: only base64 data URIs are supported"
+                        )));
+                    }
+                    Cow::Owned(base64_decode(payload).ok_or_else(|| {
+                        malformed(format!("buffer {i}: invalid base64 in data URI"))
+                    })?)
+                }
+                Some(uri) => {
+                    if uri.contains("://") {
+                        return Err(malformed(format!(
+                        "buffer {i}: unsupported URI {uri:?} (only relative files and data URIs)"
+                    )));
+                    }
+                    // At most byteLength bytes: a URI naming /dev/zero or a
+                    // huge file costs no more than the buffer declares.
+                    let file = percent_decode(uri);
+                    Cow::Owned(resolve(&file, buffer.byte_length.0).map_err(|e| {
+                        malformed(format!("buffer {i}: cannot read external file {file}: {e}"))
+                    })?)
+                }
+            };
+        let declared = buffer.byte_length.0;
+        if (data.len() as u64) < declared {
+            return Err(malformed(format!(
+                "buffer {i} has {} bytes but declares byteLength {declared}",
+                data.len()
+            )));
+        }
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+/// Decodes `%XX` escapes of a relative URI; leaves malformed escapes as they are.
+pub(super) fn percent_decode(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = |b: u8| (b as char).to_digit(16);
+        if bytes[i] == b'%' && i + 2 < bytes.len() {
+            if let (Some(h), Some(l)) = (hex(bytes[i + 1]), hex(bytes[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(bytes[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Column-major 4x4 matrix.
+pub(super) type Mat4 = [f64; 16];
+
+pub(super) const IDENTITY: Mat4 = [
+    1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+];
+
+pub(super) fn mul(a: &Mat4, b: &Mat4) -> Mat4 {
+    let mut m = [0.0; 16];
+    for c in 0..4 {
+        for r in 0..4 {
+            m[c * 4 + r] = (0..4).map(|k| a[k * 4 + r] * b[c * 4 + k]).sum();
+        }
+    }
+    m
+}
+
+pub(super) fn local_matrix(node: &json::Node) -> Mat4 {
+    if let Some(m) = node.matrix {
+        return m.map(f64::from);
+    }
+    let t = node.translation.unwrap_or([0.0; 3]).map(f64::from);
+    let [x, y, z, w] = node
+        .rotation
+        .map_or([0.0, 0.0, 0.0, 1.0], |r| r.0)
+        .map(f64::from);
+    let s = node.scale.unwrap_or([1.0; 3]).map(f64::from);
+    let r = [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ];
+    let mut m = IDENTITY;
+    for c in 0..3 {
+        for row in 0..3 {
+            m[c * 4 + row] = r[row][c] * s[c];
+        }
+        m[12 + c] = t[c];
+    }
+    m
+}
+
+pub(super) fn transform(m: &Mat4, p: [f32; 3]) -> [f64; 3] {
+    let p = p.map(f64::from);
+    if *m == IDENTITY {
+        return p;
+    }
+    [0, 1, 2].map(|r| m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r])
+}
+
+pub(super) struct Reader<'a> {
+    root: &'a json::Root,
+    buffers: &'a [Cow<'a, [u8]>],
+    custom: &'a [Vec<Vec<(String, u64)>>],
+    path: &'a Path,
+}
+
+/// Vertex scalar columns of the mesh being read, with "has a value yet" flags.
+pub(super) struct Columns {
+    names: Vec<String>,
+    values: Vec<Vec<f64>>,
+    set: Vec<Vec<bool>>,
+}
+
+impl Reader<'_> {
+    fn malformed(&self, message: String) -> IoError {
+        IoError::Malformed {
+            path: self.path.to_path_buf(),
+            message,
+        }
+    }
+
+    fn read(&self) -> Result<IndexedMesh, IoError> {
+        let instances = self.instances()?;
+        // Scalar columns: valid `_NAME`s of the instanced meshes, lower-cased, sorted.
+        let mut names: Vec<String> = instances
+            .iter()
+            .filter_map(|(mesh, _)| self.custom.get(*mesh))
+            .flatten()
+            .flatten()
+            .map(|(name, _)| name.to_ascii_lowercase())
+            .filter(|n| {
+                !n.is_empty()
+                    && n.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_')
+                    && !matches!(n.as_str(), "x" | "y" | "z")
+            })
+            .collect();
+        names.sort();
+        names.dedup();
+        let mut columns = Columns {
+            values: vec![Vec::new(); names.len()],
+            set: vec![Vec::new(); names.len()],
+            names,
+        };
+        let mut merger = VertexMerger::default();
+        let mut mesh = IndexedMesh::new();
+        for (mesh_index, matrix) in &instances {
+            let json_mesh = &self.root.meshes[*mesh_index];
+            for (prim_index, primitive) in json_mesh.primitives.iter().enumerate() {
+                self.primitive(
+                    *mesh_index,
+                    prim_index,
+                    primitive,
+                    matrix,
+                    &mut merger,
+                    &mut columns,
+                    &mut mesh,
+                )?;
+            }
+        }
+        mesh.positions = merger.positions;
+        mesh.vertex_scalars = columns.names.into_iter().zip(columns.values).collect();
+        // glTF is +Y up (spec §3.4); graftal's kernel is Z-up.
+        mesh.y_up_to_z_up();
+        Ok(mesh)
+    }
+
+    /// (mesh index, world matrix) for every node with a mesh, in traversal order.
+    fn instances(&self) -> Result<Vec<(usize, Mat4)>, IoError> {
+        let root = self.root;
+        let roots: Vec<usize> = match root
+            .scene
+            .map(|s| s.value())
+            .or_else(|| (!root.scenes.is_empty()).then_some(0))
+        {
+            Some(s) => {
+                let scene = root
+                    .scenes
+                    .get(s)
+                    .ok_or_else(|| self.malformed(format!("default scene {s} does not exist")))?;
+                scene.nodes.iter().map(Index::value).collect()
+            }
+            None => {
+                let mut is_child = vec![false; root.nodes.len()];
+                for node in &root.nodes {
+                    for child in node.children.iter().flatten() {
+                        if let Some(flag) = is_child.get_mut(child.value()) {
+                            *flag = true;
+                        }
+                    }
+                }
+                (0..root.nodes.len()).filter(|&n| !is_child[n]).collect()
+            }
+        };
+        let mut visited = vec![false; root.nodes.len()];
+        let mut stack: Vec<(usize, Mat4)> =
+            roots.into_iter().rev().map(|n| (n, IDENTITY)).collect();
+        let mut instances = Vec::new();
+        while let Some((n, parent)) = stack.pop() {
+            let node = root
+                .nodes
+                .get(n)
+                .ok_or_else(|| self.malformed(format!("node {n} does not exist")))?;
+            // Each node is visited once, so cycles and shared children cannot loop.
+            if std::mem::replace(&mut visited[n], true) {
+                continue;
+            }
+            let world = mul(&parent, &local_matrix(node));
+            if let Some(m) = node.mesh {
+                if m.value() >= root.meshes.len() {
+                    return Err(self.malformed(format!(
+                        "node {n} refers to mesh {} which does not exist",
+                        m.value()
+                    )));
+                }
+                instances.push((m.value(), world));
+            }
+            for child in node.children.iter().flatten().rev() {
+                stack.push((child.value(), world));
+            }
+        }
+        Ok(instances)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn primitive(
+        &self,
+        mesh_index: usize,
+        prim_index: usize,
+        primitive: &json::mesh::Primitive,
+        matrix: &Mat4,
+        merger: &mut VertexMerger,
+        columns: &mut Columns,
+        mesh: &mut IndexedMesh,
+    ) -> Result<(), IoError> {
+        use json::mesh::Mode;
+        let context = format!("mesh {mesh_index} primitive {prim_index}");
+        let mode = match primitive.mode {
+            Checked::Valid(mode) => mode,
+            Checked::Invalid => return Err(self.malformed(format!("{context}: invalid mode"))),
+        };
+        if mode == Mode::Points {
+            return Ok(());
+        }
+        let Some(position) = primitive
+            .attributes
+            .get(&Checked::Valid(json::mesh::Semantic::Positions))
+        else {
+            return Ok(());
+        };
+        let positions = self.read_quantized(position.value(), 3, &context, "POSITION")?;
+        let count = positions.len() / 3;
+        // Scalars of this primitive: (column, values).
+        let mut scalars = Vec::new();
+        let custom = self
+            .custom
+            .get(mesh_index)
+            .and_then(|m| m.get(prim_index))
+            .map_or(&[][..], Vec::as_slice);
+        for (name, accessor) in custom {
+            let lower = name.to_ascii_lowercase();
+            let Ok(column) = columns.names.binary_search(&lower) else {
+                continue;
+            };
+            let Ok(accessor) = usize::try_from(*accessor) else {
+                continue;
+            };
+            // Only float SCALAR attributes are vertex scalars; others are skipped.
+            let Some(acc) = self.root.accessors.get(accessor) else {
+                return Err(self.malformed(format!(
+                    "{context}: attribute _{name} refers to accessor {accessor} which does not exist"
+                )));
+            };
+            let is_float_scalar = matches!(acc.type_, Checked::Valid(json::accessor::Type::Scalar))
+                && matches!(
+                    acc.component_type,
+                    Checked::Valid(json::accessor::GenericComponentType(
+                        json::accessor::ComponentType::F32
+                    ))
+                );
+            if !is_float_scalar {
+                continue;
+            }
+            let values = self.read_f32(accessor, 1, &context, name)?;
+            if values.len() != count {
+                return Err(self.malformed(format!(
+                    "{context}: attribute _{name} has {} values for {count} vertices",
+                    values.len()
+                )));
+            }
+            scalars.push((column, values));
+        }
+        let mut indices: Vec<u32> = match primitive.indices {
+            Some(acc) => self.read_indices(acc.value(), &context)?,
+            None => (0..count as u32).collect(),
+        };
+        // Drop trailing indices that form no complete element, so they add no vertices.
+        let n = indices.len();
+        let used = match mode {
+            Mode::Triangles => n - n % 3,
+            Mode::Lines => n - n % 2,
+            Mode::TriangleStrip | Mode::TriangleFan if n < 3 => 0,
+            Mode::LineStrip | Mode::LineLoop if n < 2 => 0,
+            _ => n,
+        };
+        indices.truncate(used);
+
+        let mut remap = vec![u32::MAX; count];
+        let mut resolved = Vec::with_capacity(indices.len());
+        for (k, &v) in indices.iter().enumerate() {
+            let Some(slot) = remap.get_mut(v as usize) else {
+                return Err(self.malformed(format!(
+                    "{context}: index {k} refers to vertex {v} but only {count} exist"
+                )));
+            };
+            if *slot == u32::MAX {
+                let i = v as usize;
+                let p = transform(
+                    matrix,
+                    [positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]],
+                );
+                if !p.iter().all(|c| c.is_finite()) {
+                    return Err(
+                        self.malformed(format!("{context}: vertex {v} has a non-finite position"))
+                    );
+                }
+                let index = merger
+                    .index(p)
+                    .ok_or_else(|| self.malformed("more than u32::MAX distinct vertices".into()))?;
+                if index as usize == columns.values.first().map_or(usize::MAX, Vec::len) {
+                    for (values, set) in columns.values.iter_mut().zip(&mut columns.set) {
+                        values.push(0.0);
+                        set.push(false);
+                    }
+                }
+                for (column, values) in &scalars {
+                    let value = f64::from(values[i]);
+                    if !value.is_finite() {
+                        return Err(self.malformed(format!(
+                            "{context}: attribute _{} is not finite at vertex {v}",
+                            columns.names[*column].to_ascii_uppercase()
+                        )));
+                    }
+                    let set = &mut columns.set[*column][index as usize];
+                    if !*set {
+                        columns.values[*column][index as usize] = value;
+                        *set = true;
+                    }
+                }
+                *slot = index;
+            }
+            resolved.push(*slot);
+        }
+
+        let r = &resolved;
+        match mode {
+            Mode::Triangles => {
+                for t in r.chunks_exact(3) {
+                    mesh.push_polygon(t);
+                }
+            }
+            Mode::TriangleStrip => {
+                for i in 0..r.len().saturating_sub(2) {
+                    let t = if i % 2 == 0 {
+                        [r[i], r[i + 1], r[i + 2]]
+                    } else {
+                        [r[i + 1], r[i], r[i + 2]]
+                    };
+                    mesh.push_polygon(&t);
+                }
+            }
+            Mode::TriangleFan => {
+                for i in 0..r.len().saturating_sub(2) {
+                    mesh.push_polygon(&[r[i + 1], r[i + 2], r[0]]);
+                }
+            }
+            Mode::Lines => mesh.lines.extend(r.chunks_exact(2).map(|l| [l[0], l[1]])),
+            Mode::LineStrip => mesh.lines.extend(r.windows(2).map(|l| [l[0], l[1]])),
+            Mode::LineLoop => {
+                mesh.lines.extend(r.windows(2).map(|l| [l[0], l[1]]));
+                if r.len() > 2 {
+                    mesh.lines.push([r[r.len() - 1], r[0]]);
+                }
+            }
+            Mode::Points => {}
+        }
+        Ok(())
+    }
+
+    /// Bounds-checked raw view of an accessor: (bytes from its first element, stride, count,
+    /// component type, components per element).
+    fn accessor_bytes(
+        &self,
+        index: usize,
+        context: &str,
+        what: &str,
+    ) -> Result<(&[u8], usize, usize, json::accessor::ComponentType, usize), IoError> {
+        use json::accessor::{ComponentType, Type};
+        let err = |message: String| {
+            self.malformed(format!("{context}: {what} accessor {index}: {message}"))
+        };
+        let acc = self
+            .root
+            .accessors
+            .get(index)
+            .ok_or_else(|| err("does not exist".into()))?;
+        if acc.sparse.is_some() {
+            return Err(err("sparse accessors are not supported".into()));
+        }
+        let Checked::Valid(json::accessor::GenericComponentType(component)) = acc.component_type
+        else {
+            return Err(err("invalid componentType".into()));
+        };
+        let dims = match acc.type_ {
+            Checked::Valid(Type::Scalar) => 1,
+            Checked::Valid(Type::Vec2) => 2,
+            Checked::Valid(Type::Vec3) => 3,
+            Checked::Valid(Type::Vec4) => 4,
+            _ => return Err(err("unsupported type".into())),
+        };
+        let size = match component {
+            ComponentType::I8 | ComponentType::U8 => 1,
+            ComponentType::I16 | ComponentType::U16 => 2,
+            ComponentType::U32 | ComponentType::F32 => 4,
+        };
+        let count = usize::try_from(acc.count.0).map_err(|_| err("count too large".into()))?;
+        if count == 0 {
+            return Ok((&[], size * dims, 0, component, dims));
+        }
+        let view_index = acc
+            .buffer_view
+            .ok_or_else(|| err("has no bufferView".into()))?
+            .value();
+        let view = self
+            .root
+            .buffer_views
+            .get(view_index)
+            .ok_or_else(|| err(format!("bufferView {view_index} does not exist")))?;
+        let buffer = self
+            .buffers
+            .get(view.buffer.value())
+            .ok_or_else(|| err(format!("buffer {} does not exist", view.buffer.value())))?;
+        let element = size * dims;
+        let stride = view.byte_stride.map_or(element, |s| s.0);
+        if stride < element {
+            return Err(err(format!(
+                "byteStride {stride} is smaller than an element"
+            )));
+        }
+        let view_start = view.byte_offset.map_or(0, |o| o.0);
+        let view_end = view_start.checked_add(view.byte_length.0);
+        let start = view_start.checked_add(acc.byte_offset.map_or(0, |o| o.0));
+        let needed = (stride as u64)
+            .checked_mul(count as u64 - 1)
+            .and_then(|n| n.checked_add(element as u64));
+        let (Some(view_end), Some(start), Some(needed)) = (view_end, start, needed) else {
+            return Err(err("offsets overflow".into()));
+        };
+        if view_end > buffer.len() as u64 || start.checked_add(needed).is_none_or(|e| e > view_end)
+        {
+            return Err(err(format!(
+                "{count} elements do not fit in bufferView {view_index} ({} bytes from byte {view_start}) / buffer of {} bytes",
+                view.byte_length.0,
+                buffer.len()
+            )));
+        }
+        let start = start as usize;
+        Ok((
+            &buffer[start..start + needed as usize],
+            stride,
+            count,
+            component,
+            dims,
+        ))
+    }
+
+    /// Reads a float accessor with `dims` components per element, flattened.
+    fn read_f32(
+        &self,
+        index: usize,
+        dims: usize,
+        context: &str,
+        what: &str,
+    ) -> Result<Vec<f32>, IoError> {
+        self.read_floats(index, dims, context, what, false)
+    }
+
+    /// [`Self::read_f32`] that also takes the integer encodings of
+    /// `KHR_mesh_quantization` (how gltfpack and most optimizers ship
+    /// positions): 8- and 16-bit integers, normalized (`c / 127`,
+    /// `c / 255`, … clamped at −1, glTF §3.11) or not (their value).
+    fn read_quantized(
+        &self,
+        index: usize,
+        dims: usize,
+        context: &str,
+        what: &str,
+    ) -> Result<Vec<f32>, IoError> {
+        self.read_floats(index, dims, context, what, true)
+    }
+
+    fn read_floats(
+        &self,
+        index: usize,
+        dims: usize,
+        context: &str,
+        what: &str,
+        quantized: bool,
+    ) -> Result<Vec<f32>, IoError> {
+        use json::accessor::ComponentType;
+        let (bytes, stride, count, component, actual) =
+            self.accessor_bytes(index, context, what)?;
+        let integer = matches!(
+            component,
+            ComponentType::I8 | ComponentType::U8 | ComponentType::I16 | ComponentType::U16
+        );
+        if actual != dims || !(component == ComponentType::F32 || quantized && integer) {
+            let kinds = if quantized {
+                "FLOAT, or (KHR_mesh_quantization) BYTE, UNSIGNED_BYTE, SHORT or UNSIGNED_SHORT,"
+            } else {
+                "FLOAT"
+            };
+            return Err(self.malformed(format!(
+                "{context}: {what} accessor {index} must be {kinds} with {dims} component(s)"
+            )));
+        }
+        let normalized = self.root.accessors[index].normalized;
+        let read: fn(&[u8]) -> f32 = match (component, normalized) {
+            (ComponentType::F32, _) => |b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            (ComponentType::I8, false) => |b| f32::from(b[0] as i8),
+            (ComponentType::U8, false) => |b| f32::from(b[0]),
+            (ComponentType::I16, false) => |b| f32::from(i16::from_le_bytes([b[0], b[1]])),
+            (ComponentType::U16, false) => |b| f32::from(u16::from_le_bytes([b[0], b[1]])),
+            (ComponentType::I8, true) => |b| (f32::from(b[0] as i8) / 127.0).max(-1.0),
+            (ComponentType::U8, true) => |b| f32::from(b[0]) / 255.0,
+            (ComponentType::I16, true) => {
+                |b| (f32::from(i16::from_le_bytes([b[0], b[1]])) / 32767.0).max(-1.0)
+            }
+            (ComponentType::U16, true) => |b| f32::from(u16::from_le_bytes([b[0], b[1]])) / 65535.0,
+            (ComponentType::U32, _) => unreachable!("refused above"),
+        };
+        let size = match component {
+            ComponentType::I8 | ComponentType::U8 => 1,
+            ComponentType::I16 | ComponentType::U16 => 2,
+            _ => 4,
+        };
+        let mut out = Vec::with_capacity(count * dims);
+        for e in 0..count {
+            for c in 0..dims {
+                out.push(read(&bytes[e * stride + size * c..]));
+            }
+        }
+        Ok(out)
+    }
+
+    fn read_indices(&self, index: usize, context: &str) -> Result<Vec<u32>, IoError> {
+        use json::accessor::ComponentType;
+        let (bytes, stride, count, component, dims) =
+            self.accessor_bytes(index, context, "indices")?;
+        if dims != 1 {
+            return Err(self.malformed(format!(
+                "{context}: indices accessor {index} must be SCALAR"
+            )));
+        }
+        let read: fn(&[u8]) -> u32 = match component {
+            ComponentType::U8 => |b| u32::from(b[0]),
+            ComponentType::U16 => |b| u32::from(u16::from_le_bytes([b[0], b[1]])),
+            ComponentType::U32 => |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            _ => {
+                return Err(self.malformed(format!(
+                    "{context}: indices accessor {index} must be unsigned integers"
+                )))
+            }
+        };
+        Ok((0..count).map(|e| read(&bytes[e * stride..])).collect())
+    }
+}

@@ -1,0 +1,287 @@
+//! Clustering points within a distance (deterministic: the lowest index
+//! represents each cluster, whatever order pairs are found in).
+
+use super::*;
+
+/// Up to this many points [`cluster_roots`] compares every pair.
+pub(super) const SMALL_CLUSTER_INPUT: usize = 24;
+
+/// For each point, the lowest index of its cluster: the connected component
+/// of the graph joining points at most `distance` apart.
+pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
+    if points.len() <= SMALL_CLUSTER_INPUT {
+        // A grammar command's merge often looks at a handful of points;
+        // the sort below costs a fixed few microseconds, the pairs nothing.
+        let mut sets = UnionFind::new(points.len());
+        for (i, p) in points.iter().enumerate() {
+            for (j, q) in points.iter().enumerate().skip(i + 1) {
+                let close = if distance > 0.0 {
+                    within(*p, *q, distance)
+                } else {
+                    p.x == q.x && p.y == q.y && p.z == q.z
+                };
+                if close {
+                    sets.union(i as u32, j as u32);
+                }
+            }
+        }
+        return (0..points.len() as u32).map(|i| sets.find(i)).collect();
+    }
+    if distance > 0.0 {
+        return grid_roots(points, distance);
+    }
+    // Exact coincidence: sort by the coordinates' bits; equal runs are the
+    // clusters. Adding +0 folds −0 onto +0, so equal coordinates have
+    // equal bits.
+    let mut sets = UnionFind::new(points.len());
+    let mut keyed: Vec<([u64; 3], u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            (
+                [
+                    (p.x + 0.0).to_bits(),
+                    (p.y + 0.0).to_bits(),
+                    (p.z + 0.0).to_bits(),
+                ],
+                i as u32,
+            )
+        })
+        .collect();
+    keyed.sort_unstable();
+    for pair in keyed.windows(2) {
+        if pair[0].0 == pair[1].0 {
+            sets.union(pair[0].1, pair[1].1);
+        }
+    }
+    (0..points.len() as u32).map(|i| sets.find(i)).collect()
+}
+
+/// [`cluster_roots`] for `distance > 0`, on a grid of cell size `distance`:
+/// two points at most `distance` apart lie in the same or adjacent cells.
+///
+/// The grid is a sorted list rather than a hash map: cells are packed into
+/// integers and sorted with the point index as tie-break, and the
+/// forward neighbours of each cell are found by five cursors, one per
+/// neighbouring row of cells, that only move forward as the cells are
+/// visited in order. A linear sort plus a linear sweep over sequential
+/// memory; hashing a million points into cells and probing 13 neighbours
+/// each was measured about twice as slow.
+pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
+    let cells: Vec<[i64; 3]> = points
+        .iter()
+        .map(|p| {
+            [
+                cell_coordinate(p.x, distance),
+                cell_coordinate(p.y, distance),
+                cell_coordinate(p.z, distance),
+            ]
+        })
+        .collect();
+    let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
+    for c in &cells {
+        for axis in 0..3 {
+            low[axis] = low[axis].min(c[axis]);
+            high[axis] = high[axis].max(c[axis]);
+        }
+    }
+    // Bits per axis for coordinates shifted to 1..=span+1, so that a
+    // neighbour step (±1) never leaves its bit field: span + 2 < 2^bits.
+    let bits: Vec<u32> = (0..3)
+        .map(|axis| {
+            let span = i128::from(high[axis]) - i128::from(low[axis]) + 2;
+            128 - (span as u128).leading_zeros()
+        })
+        .collect();
+    if bits.iter().sum::<u32>() <= 64 {
+        // Fast path: the cell packed into one u64 (x | y | z).
+        let (shift_y, shift_x) = (bits[2], bits[1] + bits[2]);
+        let keys: Vec<u64> = cells
+            .iter()
+            .map(|c| {
+                let field = |axis: usize| (c[axis] - low[axis] + 1) as u64;
+                field(0) << shift_x | field(1) << shift_y | field(2)
+            })
+            .collect();
+        drop(cells);
+        let (cell_keys, order) = radix_sort(keys, bits.iter().sum());
+        let step = |k: u64, [dx, dy, dz]: [i64; 3]| {
+            let offset = (dx << shift_x) + (dy << shift_y) + dz;
+            k.wrapping_add(offset as u64)
+        };
+        gathered_roots(&cell_keys, &order, points, distance, step)
+    } else {
+        // Cells spanning more than 2⁶⁴ in all: sort the coordinates as they are.
+        let mut keyed: Vec<([i64; 3], u32)> = cells.into_iter().zip(0u32..).collect();
+        keyed.sort_unstable();
+        let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
+        let cell_keys: Vec<[i64; 3]> = keyed.into_iter().map(|(c, _)| c).collect();
+        let step = |k: [i64; 3], d: [i64; 3]| {
+            [
+                k[0].saturating_add(d[0]),
+                k[1].saturating_add(d[1]),
+                k[2].saturating_add(d[2]),
+            ]
+        };
+        gathered_roots(&cell_keys, &order, points, distance, step)
+    }
+}
+
+/// `floor(x / distance)` as an integer. `as` saturates: absurdly far points
+/// share an end cell, which only costs comparisons, never correctness (real
+/// distances are checked). Truncation plus a correction instead of
+/// `f64::floor`, which is a library call on baseline x86-64.
+#[inline]
+pub(in crate::kernel::ops) fn cell_coordinate(x: f64, distance: f64) -> i64 {
+    let q = x / distance;
+    let t = q as i64;
+    if (t as f64) > q {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
+/// Sorts `keys` (of `bits` significant bits), returning the sorted keys
+/// and, for each, its original index; equal keys stay in index order. One
+/// radix pass on the top 11 bits spreads the keys into cache-sized buckets,
+/// each then sorted by (key, index): linear for spread-out keys, and never
+/// worse than a comparison sort for clumped ones.
+pub(super) fn radix_sort(keys: Vec<u64>, bits: u32) -> (Vec<u64>, Vec<u32>) {
+    const DIGIT: u32 = 11;
+    const BUCKETS: usize = 1 << DIGIT;
+    let shift = bits.saturating_sub(DIGIT);
+    let bucket = |k: u64| (k >> shift) as usize & (BUCKETS - 1);
+    let mut start = vec![0usize; BUCKETS + 1];
+    for &k in &keys {
+        start[bucket(k) + 1] += 1;
+    }
+    for b in 0..BUCKETS {
+        start[b + 1] += start[b];
+    }
+    let mut next = start.clone();
+    let mut pairs = vec![(0u64, 0u32); keys.len()];
+    for (i, &k) in keys.iter().enumerate() {
+        let b = bucket(k);
+        pairs[next[b]] = (k, i as u32);
+        next[b] += 1;
+    }
+    drop(keys);
+    for b in 0..BUCKETS {
+        pairs[start[b]..start[b + 1]].sort_unstable();
+    }
+    pairs.into_iter().unzip()
+}
+
+/// Whether `a` and `b` are at most `distance` apart. Uses the hardware
+/// square root (`f64::sqrt` is correctly rounded by IEEE 754, so the same on
+/// every platform; glam's `length` goes through the much slower software
+/// `libm`). Squares that overflow or underflow are compared scaled instead.
+#[inline]
+pub(super) fn within(a: DVec3, b: DVec3, distance: f64) -> bool {
+    let diff = a - b;
+    let square = diff.length_squared();
+    if square.is_normal() {
+        square.sqrt() <= distance
+    } else {
+        (diff / distance).length_squared() <= 1.0
+    }
+}
+
+/// The forward neighbour rows of a cell, as (dx, dy, lowest dz, highest
+/// dz): with the cell itself, and mirrored, they cover all 27 cells, and
+/// each pair of neighbouring cells is met exactly once (from the lower one).
+pub(super) const FORWARD_ROWS: [(i64, i64, i64, i64); 5] = [
+    (0, 0, 1, 1),
+    (0, 1, -1, 1),
+    (1, -1, -1, 1),
+    (1, 0, -1, 1),
+    (1, 1, -1, 1),
+];
+
+/// Sweeps the grid (see [`sweep`]) over the points gathered in cell order,
+/// then maps the clusters back: for each input point, the lowest input
+/// index of its cluster. Gathering first turns the pair tests' scattered
+/// reads into sequential ones (most of the cost at a million points).
+pub(super) fn gathered_roots<K: Copy + Ord>(
+    sorted_cells: &[K],
+    order: &[u32],
+    points: &[DVec3],
+    distance: f64,
+    step: impl Fn(K, [i64; 3]) -> K,
+) -> Vec<u32> {
+    let gathered: Vec<DVec3> = order.iter().map(|&i| points[i as usize]).collect();
+    let mut sets = UnionFind::new(order.len());
+    sweep(sorted_cells, &gathered, distance, &mut sets, step);
+    let mut lowest = vec![u32::MAX; order.len()];
+    for (k, &i) in order.iter().enumerate() {
+        let root = sets.find(k as u32) as usize;
+        lowest[root] = lowest[root].min(i);
+    }
+    let mut roots = vec![0u32; order.len()];
+    for (k, &i) in order.iter().enumerate() {
+        roots[i as usize] = lowest[sets.find(k as u32) as usize];
+    }
+    roots
+}
+
+/// Unions, in `sets`, every pair of `points` at most `distance` apart.
+/// `sorted_cells[k]` is the cell of point `k`, ascending; `step` moves a
+/// cell key by a cell offset, preserving order (lexicographic x, y, z), so
+/// each row cursor only ever moves forward.
+pub(super) fn sweep<K: Copy + Ord>(
+    sorted_cells: &[K],
+    points: &[DVec3],
+    distance: f64,
+    sets: &mut UnionFind,
+    step: impl Fn(K, [i64; 3]) -> K,
+) {
+    // Runs of equal keys: cell c holds points start[c]..start[c + 1].
+    let mut keys: Vec<K> = Vec::new();
+    let mut start: Vec<usize> = Vec::new();
+    for (k, &cell) in sorted_cells.iter().enumerate() {
+        if keys.last() != Some(&cell) {
+            keys.push(cell);
+            start.push(k);
+        }
+    }
+    start.push(sorted_cells.len());
+    let link = |sets: &mut UnionFind, i: usize, j: usize| {
+        // Same set already is the common case inside a cluster, and cheaper.
+        let (a, b) = (i as u32, j as u32);
+        if sets.find(a) != sets.find(b) && within(points[i], points[j], distance) {
+            sets.union(a, b);
+        }
+    };
+
+    let mut cursors = [0usize; FORWARD_ROWS.len()];
+    for (c, &key) in keys.iter().enumerate() {
+        let here = start[c]..start[c + 1];
+        for i in here.clone() {
+            for j in i + 1..here.end {
+                link(sets, i, j);
+            }
+        }
+        for (row, &(dx, dy, z_low, z_high)) in FORWARD_ROWS.iter().enumerate() {
+            let first = step(key, [dx, dy, z_low]);
+            let last = step(key, [dx, dy, z_high]);
+            let cursor = &mut cursors[row];
+            while *cursor < keys.len() && keys[*cursor] < first {
+                *cursor += 1;
+            }
+            let mut d = *cursor;
+            while d < keys.len() && keys[d] <= last {
+                // Only a saturated key (coordinates near ±2⁶³ cells) can
+                // land on the cell itself or behind it.
+                if d > c {
+                    for i in here.clone() {
+                        for j in start[d]..start[d + 1] {
+                            link(sets, i, j);
+                        }
+                    }
+                }
+                d += 1;
+            }
+        }
+    }
+}
