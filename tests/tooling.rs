@@ -572,3 +572,18 @@ fn man_page_is_roff_listing_every_command() {
     let o = graftal(&["man", "--dir", "no/such/dir"]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// Every registered operator has a row in the rule reference.
+#[test]
+fn every_operator_is_documented() {
+    let docs = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/rules.md"),
+    )
+    .unwrap();
+    for op in graftal::rules::operators::names() {
+        assert!(
+            docs.contains(&format!("\n| `{op}` |")),
+            "docs/rules.md has no row for `{op}`"
+        );
+    }
+}

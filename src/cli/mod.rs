@@ -1,8 +1,17 @@
-//! The command line: `run`, `check`, `info`, `convert`.
+//! The command line, and the only code that touches files.
 //!
-//! Exit codes: 0 success; 1 runtime failure (a step failed, an output could
-//! not be written); 2 usage error, bad rule file or bad input mesh.
-//! Outputs are written atomically: a temporary file, then a rename.
+//! Commands: `run` (one variant or a batch: [`batch`]), `check`, `info`,
+//! `convert`, `verify` (golden checks: [`verify`]), `manifest merge`
+//! ([`manifest`]), `lint`, `explain`, `schema`, `completions`, `man`
+//! ([`tooling`]). [`files`] reads inputs (regular files only, references
+//! confined to their directory) and writes outputs (all of a run's or none);
+//! [`stats`] renders stats and mesh reports.
+//!
+//! Exit codes: 0 success (also when standard output is closed early); 1
+//! runtime failure (a step failed, an output could not be written, a format
+//! could not hold the mesh under `--strict`); 2 usage error, bad rule file
+//! or bad input file; 3 over `--max-primitives`; 4 over `--timeout`; 5 over
+//! `--max-evaluations`.
 
 mod batch;
 mod files;

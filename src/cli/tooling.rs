@@ -140,6 +140,8 @@ pub fn man(dir: Option<&Path>) -> Result<(), Failure> {
 struct ExplainStep<'a> {
     name: &'a str,
     op: &'static str,
+    /// What the operator does (the registry's summary).
+    summary: &'static str,
     location: &'a str,
     /// The step's generation (its products' `age`): program order, compound
     /// contents included.
@@ -285,6 +287,10 @@ fn explain_steps<'a>(program: &'a Program, stats: &'a [StepStats]) -> Vec<Explai
             ExplainStep {
                 name: &step.name,
                 op: step.op.name(),
+                summary: crate::rules::operators::find(step.op.name()).map_or(
+                    "a compound command: its steps in the scope of each matched primitive",
+                    |d| d.summary,
+                ),
                 location: &step.location,
                 generation: step.uid + 1,
                 depth,
@@ -338,6 +344,7 @@ fn explain_text(doc: &ExplainJson) -> String {
             step.name, step.op, step.location
         );
         let indent = format!("{indent}  ");
+        s += &format!("{indent}{}\n", step.summary);
         if !step.ran {
             s += &format!(
                 "{indent}did not run: {}\n",
