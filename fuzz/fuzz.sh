@@ -38,6 +38,7 @@ seeds_of() {
 dict_of() {
     case $1 in
         rules_compile | rules_run | error_render) echo "-dict=rules.dict" ;;
+        mesh_obj | mesh_stl | mesh_ply | mesh_gltf | mesh_glb) echo "-dict=${1#mesh_}.dict" ;;
     esac
 }
 

@@ -10,3 +10,4 @@ pub mod grammar;
 pub mod io;
 pub mod kernel;
 pub mod rules;
+pub mod sdf;

@@ -7,7 +7,7 @@
 //! workers take variants in any order, and whatever is reported in order
 //! (NDJSON stats, the manifest) is put back in index order first.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -356,6 +356,10 @@ pub struct RunArgs {
     /// conditions and per-primitive parameters.
     #[arg(long, default_value_t = crate::grammar::DEFAULT_MAX_EVALUATIONS, value_name = "N")]
     pub max_evaluations: u64,
+    /// Stop (exit code 3, no output) before meshing a signed distance
+    /// field on a grid of more than N cells (checked before allocating).
+    #[arg(long, default_value_t = crate::grammar::DEFAULT_MAX_CELLS, value_name = "N")]
+    pub max_cells: u64,
     /// Stop a variant (exit code 4, no output) after SECONDS of wall
     /// clock.
     #[arg(long, value_name = "SECONDS", value_parser = super::parse_timeout)]
@@ -421,6 +425,8 @@ struct Produced {
     /// Counts for the single-run message.
     faces: usize,
     vertices: usize,
+    /// Warnings of the run (the batch prints each once).
+    warnings: Vec<String>,
 }
 
 pub fn run(args: RunArgs) -> Result<(), Failure> {
@@ -587,6 +593,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         output: output.text().to_string(),
         max_primitives: args.max_primitives,
         max_evaluations: args.max_evaluations,
+        max_cells: args.max_cells,
         timeout_seconds: args.timeout,
         ascii: args.write.ascii,
         timings: args.timings,
@@ -901,8 +908,14 @@ fn run_variants(
         }
         drop(sender);
         let mut emitted = 0;
+        let mut warned: BTreeSet<String> = BTreeSet::new();
         for (k, produced) in receiver {
             progress.tick();
+            for w in &produced.warnings {
+                if warned.insert(w.clone()) {
+                    progress.println(&format!("warning: {w}"));
+                }
+            }
             if let (true, Some(err)) = (context.batch, &produced.entry.error) {
                 progress.println(&format!(
                     "error: variant {} (seed {}): {}",
@@ -971,6 +984,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
             staged: None,
             faces: 0,
             vertices: 0,
+            warnings: Vec::new(),
         }
     };
     let options = RunOptions {
@@ -979,6 +993,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         max_evaluations: args.max_evaluations,
         deadline: args.timeout.map(|s| started + Duration::from_secs_f64(s)),
         inputs: std::sync::Arc::clone(&context.inputs.meshes),
+        max_cells: args.max_cells,
         ..RunOptions::default()
     };
     let result = match grammar::run(program, &options) {
@@ -1060,6 +1075,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         staged,
         faces: mesh.face_count(),
         vertices: mesh.vert_count(),
+        warnings: result.warnings.clone(),
     }
 }
 

@@ -29,6 +29,7 @@ use std::sync::Arc;
 use sha2::{Digest, Sha256};
 
 use super::Failure;
+use crate::grammar::Input;
 use crate::io::{self as meshio, IndexedMesh, MeshFormat};
 use crate::rules::compile::source_from_bytes;
 use crate::rules::diagnostic::SourceFile;
@@ -60,9 +61,13 @@ pub fn compile_rules(path: &Path, overrides: &[Override]) -> Result<Program, Rul
     compile_source(&file, overrides, &base_dir(path))
 }
 
-/// The directory a rule file's paths resolve against.
+/// The directory a rule file's paths resolve against (`.` for a bare file
+/// name: an empty path cannot be canonicalized to confine references).
 pub fn base_dir(path: &Path) -> PathBuf {
-    path.parent().map(Path::to_path_buf).unwrap_or_default()
+    match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
 }
 
 /// Reads a whole input file, refusing anything but a regular file.
@@ -115,8 +120,9 @@ fn decode_mesh(path: &Path, bytes: &[u8], policy: InputPolicy) -> Result<Indexed
 /// The files a program needs, read once (a batch shares them).
 #[derive(Debug, Clone)]
 pub struct Inputs {
-    /// Decoded meshes by resource index, for `RunOptions::inputs`.
-    pub meshes: Arc<[Arc<IndexedMesh>]>,
+    /// Decoded meshes by resource index (their distance fields built on
+    /// first use), for `RunOptions::inputs`.
+    pub meshes: Arc<[Input]>,
     /// (path as written, SHA-256 of the bytes), for the manifest.
     pub hashes: Vec<(String, String)>,
 }
@@ -141,7 +147,7 @@ pub fn load_inputs(program: &Program, policy: InputPolicy) -> Result<Inputs, Fai
             resource.written.clone(),
             super::batch::hex(&Sha256::digest(&bytes)),
         ));
-        meshes.push(Arc::new(mesh));
+        meshes.push(Input::new(Arc::new(mesh)));
     }
     Ok(Inputs {
         meshes: Arc::from(meshes),

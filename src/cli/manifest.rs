@@ -59,12 +59,26 @@ pub struct BatchSpec {
     pub output: String,
     pub max_primitives: usize,
     pub max_evaluations: u64,
+    /// `--max-cells`; absent for the default.
+    #[serde(
+        default = "default_max_cells",
+        skip_serializing_if = "is_default_max_cells"
+    )]
+    pub max_cells: u64,
     pub timeout_seconds: Option<f64>,
     pub ascii: bool,
     pub timings: bool,
     /// `--up y` (OBJ, PLY and STL written Y-up); absent for the default.
     #[serde(default, skip_serializing_if = "is_false")]
     pub up_y: bool,
+}
+
+fn default_max_cells() -> u64 {
+    crate::grammar::DEFAULT_MAX_CELLS
+}
+
+fn is_default_max_cells(n: &u64) -> bool {
+    *n == crate::grammar::DEFAULT_MAX_CELLS
 }
 
 fn is_false(b: &bool) -> bool {

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::grammar::{RunOutput, StepStats};
+use crate::grammar::{FieldStats, RunOutput, StepStats};
 use crate::kernel::build::ImportReport;
 use glam::DVec3;
 
@@ -128,6 +128,79 @@ pub struct StepJson {
     pub created_faces: usize,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_ms: Option<f64>,
+    /// Steps that mesh a signed distance field: what the meshing did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field: Option<FieldJson>,
+}
+
+/// What meshing a field did (see [`FieldStats`]).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct FieldJson {
+    /// Fields meshed (runs of the step that meshed one).
+    pub meshings: usize,
+    /// Meshes appended: an `sdf_part` places one meshing on every primitive.
+    pub instances: usize,
+    /// Cells per axis of the (last) grid, and its cell edge.
+    pub grid: [usize; 3],
+    pub cell: f64,
+    pub grid_cells: u64,
+    /// Cells whose corners were evaluated; the others were culled in
+    /// blocks far from the surface.
+    pub cells_evaluated: u64,
+    pub blocks: u64,
+    pub blocks_culled: u64,
+    pub field_evaluations: u64,
+    pub triangles: u64,
+    /// Largest |f| at an output vertex.
+    pub max_abs_f: f64,
+    pub volume: f64,
+    pub area: f64,
+    pub watertight: bool,
+    pub components: usize,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub genus: Option<i64>,
+    /// `skin` with `method = "field"`: connected skeletons, solids, cavities.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skeletons: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solids: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cavities: Option<usize>,
+    /// How the inside of each meshed input was decided.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sign: Vec<String>,
+    /// With `--timings`: evaluating the field, and making triangles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field_ms: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mesh_ms: Option<f64>,
+}
+
+fn field_json(f: &FieldStats, timings: bool) -> FieldJson {
+    FieldJson {
+        meshings: f.meshings,
+        instances: f.instances,
+        grid: f.grid,
+        cell: f.cell,
+        grid_cells: f.grid_cells,
+        cells_evaluated: f.cells_evaluated,
+        blocks: f.blocks,
+        blocks_culled: f.blocks_culled,
+        field_evaluations: f.field_evaluations,
+        triangles: f.triangles,
+        max_abs_f: f.max_abs_f,
+        volume: f.volume,
+        area: f.area,
+        watertight: f.watertight,
+        components: f.components,
+        genus: f.genus,
+        skeletons: f.skin.map(|s| s.skeletons),
+        solids: f.skin.map(|s| s.solids),
+        cavities: f.skin.map(|s| s.cavities),
+        sign: f.sign.clone(),
+        field_ms: timings.then_some(f.field_time.as_secs_f64() * 1e3),
+        mesh_ms: timings.then_some(f.mesh_time.as_secs_f64() * 1e3),
+    }
 }
 
 /// The steps of a run in program order; times only if `timings`.
@@ -150,6 +223,7 @@ pub fn steps_json(steps: &[StepStats], timings: bool) -> Vec<StepJson> {
             created_edges: s.created.edges,
             created_faces: s.created.faces,
             time_ms: timings.then_some(s.elapsed.as_secs_f64() * 1e3),
+            field: s.field.as_deref().map(|f| field_json(f, timings)),
         })
         .collect()
 }

@@ -237,6 +237,19 @@ pub enum UpAxis {
 }
 
 impl IndexedMesh {
+    /// Every polygon triangulated in its plane, as indices into
+    /// `positions`, polygon by polygon; a degenerate polygon gives none.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let mut out = Vec::with_capacity(self.face_indices.len());
+        let mut tri = PolygonTriangulator::default();
+        for poly in self.polygons() {
+            if tri.run(self, poly).is_some() {
+                out.extend(tri.triangles.iter().map(|t| t.map(|k| poly[k as usize])));
+            }
+        }
+        out
+    }
+
     /// Turns a Z-up mesh into the Y-up frame: (x, y, z) → (x, z, −y), a
     /// rotation (handedness and winding are kept). Exact: only a swap and
     /// a negation.

@@ -198,6 +198,61 @@ impl MeshSink for IndexedMesh {
     }
 }
 
+/// A sink that passes everything on to `inner` with vertex positions
+/// mapped by `p ↦ origin + linear·p` (a placed copy). A map that mirrors
+/// (negative determinant) reverses polygon winding, so outward faces stay
+/// outward.
+pub struct Placed<'s> {
+    pub inner: &'s mut dyn MeshSink,
+    pub linear: glam::DMat3,
+    pub origin: DVec3,
+    reversed: Vec<u32>,
+}
+
+impl<'s> Placed<'s> {
+    pub fn new(inner: &'s mut dyn MeshSink, linear: glam::DMat3, origin: DVec3) -> Self {
+        Placed {
+            inner,
+            linear,
+            origin,
+            reversed: Vec::new(),
+        }
+    }
+}
+
+impl MeshSink for Placed<'_> {
+    fn begin(&mut self, begin: &Begin) -> Result<(), SinkError> {
+        self.inner.begin(begin)
+    }
+
+    fn vertex(&mut self, position: DVec3, scalars: &[f64]) -> Result<(), SinkError> {
+        self.inner
+            .vertex(self.origin + self.linear * position, scalars)
+    }
+
+    fn polygon(&mut self, corners: &[u32]) -> Result<(), SinkError> {
+        if self.linear.determinant() < 0.0 {
+            self.reversed.clear();
+            self.reversed.extend(corners.iter().rev());
+            self.inner.polygon(&self.reversed)
+        } else {
+            self.inner.polygon(corners)
+        }
+    }
+
+    fn line(&mut self, a: u32, b: u32) -> Result<(), SinkError> {
+        self.inner.line(a, b)
+    }
+
+    fn end(&mut self) -> Result<(), SinkError> {
+        self.inner.end()
+    }
+
+    fn abort(&mut self) {
+        self.inner.abort()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -81,6 +81,32 @@ pub enum StepError {
     Timeout,
     #[error("the model has {total} primitives, over the limit of {limit}; raise it with --max-primitives if the growth is intended")]
     TooLarge { total: usize, limit: usize },
+    /// A signed distance tree that cannot be built (located at its node).
+    #[error("{0}")]
+    Tree(String),
+    /// Meshing a field, or building one, failed.
+    #[error("{what}: {error}")]
+    Field {
+        what: String,
+        /// Boxed: the pillar's errors are large and rare.
+        error: Box<crate::sdf::SdfError>,
+    },
+    /// A meshing parameter evaluated out of range.
+    #[error("`{key}` {message}")]
+    Option { key: &'static str, message: String },
+    #[error("the grid would have {cells} cells ({} x {} x {}), over the limit of {limit}; use a larger `cell` (or fewer `cells`), or raise --max-cells", grid[0], grid[1], grid[2])]
+    TooManyCells {
+        /// Saturated (a hostile grid's count may pass u64).
+        cells: u64,
+        grid: [u64; 3],
+        limit: u64,
+    },
+    #[error("{what} would add about {coming} primitives, more than the {budget} left under --max-primitives; raise it if the growth is intended")]
+    FieldTooLarge {
+        what: String,
+        coming: u64,
+        budget: u64,
+    },
     #[error("the model would grow past the limit of {limit} primitives (it has {total}, this step adds about {coming}); raise it with --max-primitives if the growth is intended")]
     WouldBeTooLarge {
         total: usize,
@@ -95,9 +121,10 @@ impl StepError {
         match self {
             StepError::Evaluations { .. } => RunErrorKind::EvaluationLimit,
             StepError::Timeout => RunErrorKind::Timeout,
-            StepError::TooLarge { .. } | StepError::WouldBeTooLarge { .. } => {
-                RunErrorKind::TooLarge
-            }
+            StepError::TooLarge { .. }
+            | StepError::WouldBeTooLarge { .. }
+            | StepError::TooManyCells { .. }
+            | StepError::FieldTooLarge { .. } => RunErrorKind::TooLarge,
             _ => RunErrorKind::Failed,
         }
     }

@@ -10,6 +10,9 @@
 //!   against the model before an application is made.
 //! - [`scope`]: compound-command scopes and their reference frames.
 //! - [`properties`]: what conditions and parameters read.
+//! - `fields`: the signed distance operators (`sdf`, `sdf_part`,
+//!   `sdf_boolean`, the field `skin`) and [`Input`], the files a run reads
+//!   with their distance fields built once per batch.
 //! - `operators`: the implementations of the registry's create, kernel
 //!   and whole-mesh operators (dispatch on [`OpId`](crate::rules::operators::OpId)).
 //! - `run`: the step loop, rules, compounds, statistics; `error`: its
@@ -17,6 +20,7 @@
 
 pub mod commands;
 mod error;
+mod fields;
 pub mod graph;
 pub mod intersect;
 pub mod merge;
@@ -26,7 +30,8 @@ mod run;
 pub mod scope;
 
 pub use error::{RunError, RunErrorKind, StepError};
+pub use fields::{FieldStats, Input, SkinCounts};
 pub use run::{
-    parameter_values, run, CreatedCounts, RunOptions, RunOutput, StepStats, DEFAULT_MAX_ELEMENTS,
-    DEFAULT_MAX_EVALUATIONS,
+    parameter_values, run, CreatedCounts, RunOptions, RunOutput, StepStats, DEFAULT_MAX_CELLS,
+    DEFAULT_MAX_ELEMENTS, DEFAULT_MAX_EVALUATIONS,
 };

@@ -5,13 +5,11 @@
 //! on the identity, so a registered operator without an implementation
 //! does not compile. G³ commands and compounds run in [`super::run`].
 
-use std::sync::Arc;
-
 use glam::DVec3;
 
 use super::error::StepError;
+use super::fields::{self, FieldApplied, FieldContext, FieldStats, Input};
 use super::graph;
-use crate::geom::IndexedMesh;
 use crate::kernel::ops::delete::DeleteMode;
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::select::Adjacency;
@@ -20,6 +18,7 @@ use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::expr::Expr;
 use crate::rules::operators::OpId;
 use crate::rules::program::{Call, Resource, Vector};
+use crate::rules::sdf_tree::SdfForest;
 
 /// What an operator implementation sees besides the mesh.
 pub(super) struct Context<'a> {
@@ -27,9 +26,17 @@ pub(super) struct Context<'a> {
     pub slots: &'a [f64],
     /// The program's files, read before the run.
     pub resources: &'a [Resource],
-    pub inputs: &'a Arc<[Arc<IndexedMesh>]>,
+    pub inputs: &'a [Input],
+    /// The program's signed distance trees.
+    pub sdf: &'a SdfForest,
     /// The element kind the step selected.
     pub domain: Domain,
+    /// `--max-cells`.
+    pub max_cells: u64,
+    /// Primitives the model may still grow by (for operators that cannot
+    /// predict their growth: meshing a field).
+    pub budget: u64,
+    pub uses_graph: bool,
 }
 
 /// What an operator did.
@@ -38,6 +45,23 @@ pub(super) struct Applied {
     /// How many of the selected elements it applied to, when fewer than
     /// all (`dissolve_edges` skips edges it cannot dissolve).
     pub applied: Option<usize>,
+    /// What meshing a field did.
+    pub field: Option<FieldStats>,
+    pub warnings: Vec<String>,
+    /// The model was replaced as a whole (ids remembered before are void).
+    pub replaced: bool,
+}
+
+impl From<FieldApplied> for Applied {
+    fn from(f: FieldApplied) -> Self {
+        Applied {
+            made: f.made,
+            applied: None,
+            field: Some(f.stats),
+            warnings: f.warnings,
+            replaced: f.replaced,
+        }
+    }
 }
 
 impl Context<'_> {
@@ -171,7 +195,8 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         OpId::Import => call
             .resource("path")
             .and_then(|r| ctx.inputs.get(r))
-            .map_or(0, |mesh| {
+            .map_or(0, |input| {
+                let mesh = &input.mesh;
                 (mesh.positions.len() + 2 * mesh.face_indices.len() + mesh.lines.len()) as u64
             }),
         OpId::ExtrudeVerts => m(vert_count(), 2),
@@ -196,6 +221,9 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             .fold(0, u64::saturating_add),
         OpId::Duplicate | OpId::Mirror => size(&sel.full()),
         OpId::MakeFace => 1,
+        // Meshing a field cannot be predicted; the mesher stops at the budget.
+        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean => 0,
+        OpId::Skin if is_field_skin(call) => 0,
         OpId::Skin => {
             let s = n("sides");
             let wires = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).count() as u64;
@@ -238,6 +266,26 @@ pub(super) fn apply(
     selected: &[usize],
 ) -> Result<Applied, StepError> {
     use ops::{create, delete, extrude, faces, inset, merge, select, split, transform};
+    let field_ctx = || FieldContext {
+        slots: ctx.slots,
+        sdf: ctx.sdf,
+        inputs: ctx.inputs,
+        max_cells: ctx.max_cells,
+        budget: ctx.budget,
+        uses_graph: ctx.uses_graph,
+    };
+    match call.def.id {
+        OpId::Sdf => return fields::create(&field_ctx(), mesh, call).map(Applied::from),
+        OpId::SdfPart => {
+            return fields::place_parts(&field_ctx(), mesh, call, ctx.domain, selected)
+                .map(Applied::from)
+        }
+        OpId::SdfBoolean => return fields::boolean(&field_ctx(), mesh, call).map(Applied::from),
+        OpId::Skin if is_field_skin(call) => {
+            return fields::skin(&field_ctx(), mesh, call).map(Applied::from)
+        }
+        _ => {}
+    }
     let sel = Selected {
         mesh,
         domain: ctx.domain,
@@ -318,10 +366,11 @@ pub(super) fn apply(
         OpId::Import => {
             let resource = call.resource("path").expect("required");
             let source = &ctx.resources[resource];
-            let loaded = ctx
+            let loaded = &ctx
                 .inputs
                 .get(resource)
-                .ok_or_else(|| StepError::NotLoaded(source.written.clone()))?;
+                .ok_or_else(|| StepError::NotLoaded(source.written.clone()))?
+                .mesh;
             let mut indexed = match call.scalar("weld") {
                 Some(d) => std::borrow::Cow::Owned(loaded.welded(ctx.scalar(d))),
                 None => std::borrow::Cow::Borrowed(&**loaded),
@@ -461,6 +510,7 @@ pub(super) fn apply(
                 map.faces.into_iter().flatten().collect(),
             )
         }
+        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean => unreachable!("applied above"),
         OpId::CreateEdge
         | OpId::SplitEdge
         | OpId::CreateFace
@@ -469,5 +519,16 @@ pub(super) fn apply(
             unreachable!("G³ commands are no calls")
         }
     };
-    Ok(Applied { made, applied })
+    Ok(Applied {
+        made,
+        applied,
+        field: None,
+        warnings: Vec::new(),
+        replaced: false,
+    })
+}
+
+/// Whether a `skin` step meshes a field (`method = "field"`).
+fn is_field_skin(call: &Call) -> bool {
+    call.choice("method") == Some("field")
 }

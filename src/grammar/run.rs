@@ -11,10 +11,10 @@ use glam::DVec3;
 use rustc_hash::FxHashMap;
 
 use super::error::{RunError, StepError};
+use super::fields::{FieldStats, Input};
 use super::intersect::Guard;
 use super::merge::Merger;
 use super::operators;
-use crate::geom::IndexedMesh;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
@@ -52,9 +52,15 @@ pub struct RunOptions {
     /// on expression work, deterministic unlike a timeout.
     pub max_evaluations: u64,
     /// The program's [`Program::resources`], read by the caller, by index
-    /// (shared by every variant of a batch).
-    pub inputs: Arc<[Arc<IndexedMesh>]>,
+    /// (shared by every variant of a batch, with their distance fields).
+    pub inputs: Arc<[Input]>,
+    /// Stop with [`RunErrorKind::TooLarge`] before meshing a field on a
+    /// grid of more cells than this (checked before allocating).
+    pub max_cells: u64,
 }
+
+/// Default `--max-cells`: 2³⁰, a 1024³ grid.
+pub const DEFAULT_MAX_CELLS: u64 = 1 << 30;
 
 /// Default `--max-evaluations`.
 pub const DEFAULT_MAX_EVALUATIONS: u64 = 10_000_000_000;
@@ -72,6 +78,7 @@ impl Default for RunOptions {
             deadline: None,
             max_evaluations: DEFAULT_MAX_EVALUATIONS,
             inputs: Arc::from(Vec::new()),
+            max_cells: DEFAULT_MAX_CELLS,
         }
     }
 }
@@ -119,6 +126,8 @@ pub struct StepStats {
     pub cancelled_compounds: usize,
     pub created: CreatedCounts,
     pub elapsed: Duration,
+    /// What meshing fields did (steps that mesh one).
+    pub field: Option<Box<FieldStats>>,
 }
 
 #[derive(Debug)]
@@ -129,6 +138,8 @@ pub struct RunOutput {
     pub params: Vec<(String, f64)>,
     /// One entry per step that ran, in program order.
     pub steps: Vec<StepStats>,
+    /// Warnings about the inputs (each once), in the order they arose.
+    pub warnings: Vec<String>,
 }
 
 /// `Runner::product_slot` of a step whose products no step reads.
@@ -136,7 +147,9 @@ const NO_SLOT: u32 = u32::MAX;
 
 struct Runner<'p> {
     program: &'p Program,
-    inputs: Arc<[Arc<IndexedMesh>]>,
+    inputs: Arc<[Input]>,
+    max_cells: u64,
+    warnings: Vec<String>,
     seed: u64,
     max_elements: usize,
     deadline: Option<Instant>,
@@ -188,6 +201,7 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         seed: runner.seed,
         params,
         steps: runner.stats.into_iter().flatten().map(|s| *s).collect(),
+        warnings: runner.warnings,
     })
 }
 
@@ -211,6 +225,8 @@ impl<'p> Runner<'p> {
         let mut runner = Runner {
             program,
             inputs: Arc::clone(&options.inputs),
+            max_cells: options.max_cells,
+            warnings: Vec::new(),
             seed: options.seed.unwrap_or(program.default_seed),
             max_elements: options.max_elements,
             deadline: options.deadline,
@@ -338,6 +354,7 @@ struct Tally {
     rejected: usize,
     cancelled: usize,
     cancelled_compounds: usize,
+    field: Option<FieldStats>,
 }
 
 impl Runner<'_> {
@@ -505,8 +522,15 @@ impl Runner<'_> {
                 cancelled_compounds: 0,
                 created: CreatedCounts::default(),
                 elapsed: Duration::ZERO,
+                field: None,
             })
         });
+        if let Some(f) = &tally.field {
+            stats
+                .field
+                .get_or_insert_with(|| Box::new(FieldStats::default()))
+                .add(f);
+        }
         stats.runs += 1;
         stats.candidates += tally.candidates;
         stats.matched += tally.matched;
@@ -534,7 +558,7 @@ impl Runner<'_> {
     ) -> Result<Selection, Stop> {
         if let Op::Call(call) = &step.op {
             if call.def.is_create() {
-                return Ok(self.run_call(mesh, step, call, &[])?.made);
+                return Ok(self.run_call(mesh, step, call, &[], tally)?.made);
             }
         }
         let candidates = self.candidates(mesh, step);
@@ -560,7 +584,7 @@ impl Runner<'_> {
                 self.run_compound(mesh, step, *index, frame, &matched, tally)
             }
             Op::Call(call) => {
-                let done = self.run_call(mesh, step, call, &matched)?;
+                let done = self.run_call(mesh, step, call, &matched, tally)?;
                 // An operator that applies to fewer than it was given says so.
                 tally.applied = done.applied.unwrap_or(matched.len());
                 Ok(done.made)
@@ -576,15 +600,21 @@ impl Runner<'_> {
         step: &Step,
         call: &Call,
         selected: &[usize],
+        tally: &mut Tally,
     ) -> Result<operators::Applied, RunError> {
         // A kernel operator may move, make or remove anything.
         self.merger.invalidate();
         self.guard.invalidate();
+        let total = mesh.vert_count() + mesh.edge_count() + mesh.face_count();
         let ctx = operators::Context {
             slots: &self.slots,
             resources: &self.program.resources,
             inputs: &self.inputs,
+            sdf: &self.program.sdf,
             domain: step.domain,
+            max_cells: self.max_cells,
+            budget: self.max_elements.saturating_sub(total) as u64,
+            uses_graph: self.program.uses_graph,
         };
         let growth = operators::predicted_growth(&ctx, mesh, call, selected);
         // Kernel work counts against the evaluation budget: one unit per
@@ -594,13 +624,23 @@ impl Runner<'_> {
             .saturating_add(selected.len() as u64)
             .saturating_add(growth);
         self.check_size(mesh, step, usize::try_from(growth).unwrap_or(usize::MAX))?;
-        let ctx = operators::Context {
-            slots: &self.slots,
-            resources: &self.program.resources,
-            inputs: &self.inputs,
-            domain: step.domain,
-        };
-        operators::apply(&ctx, mesh, call, selected).map_err(|e| step_error(step, e))
+        let done = operators::apply(&ctx, mesh, call, selected).map_err(|e| step_error(step, e))?;
+        if let Some(field) = &done.field {
+            // A field evaluation is work like an expression's.
+            self.evaluations = self.evaluations.saturating_add(field.field_evaluations);
+            tally.field = Some(field.clone());
+        }
+        for w in &done.warnings {
+            if !self.warnings.contains(w) {
+                self.warnings.push(w.clone());
+            }
+        }
+        if done.replaced {
+            for made in &mut self.created {
+                *made = Selection::new();
+            }
+        }
+        Ok(done)
     }
 
     /// The run's bounds: the primitive count (with `coming` more on the

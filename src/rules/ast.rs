@@ -42,6 +42,10 @@ pub struct RuleFile {
     /// Compound commands (`[compound.NAME]`), applied by `compound = "NAME"`.
     #[serde(default)]
     pub compound: Named<CompoundDef>,
+    /// Signed distance trees (`[sdf.NAME]`: a table with a `kind`), used by
+    /// the `sdf` operators' `tree` and by other trees' children.
+    #[serde(default)]
+    pub sdf: Named<Spanned<Args>>,
     /// Default policy of G³ commands about coinciding primitives.
     #[serde(default)]
     pub policy: Option<Spanned<PolicyName>>,

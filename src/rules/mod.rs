@@ -16,6 +16,8 @@ pub mod program;
 pub mod random;
 pub mod ron;
 pub mod schema;
+pub mod sdf_kinds;
+pub mod sdf_tree;
 pub mod spanned;
 
 pub use compile::{compile_source, Override};

@@ -47,6 +47,9 @@ pub enum OpId {
     SplitFace,
     EditNode,
     Skin,
+    Sdf,
+    SdfPart,
+    SdfBoolean,
 }
 
 /// How an operator runs.
@@ -85,6 +88,11 @@ pub enum ArgKind {
     Path,
     /// A condition over the nodes of the matched face.
     NodeCondition,
+    /// A signed distance tree: the name of an `[sdf.NAME]` table, or a
+    /// tree written inline (`{ kind = "sphere", radius = 1 }`).
+    Tree,
+    /// An axis-aligned box, `[[x, y, z], [x, y, z]]` (lowest corner first).
+    Bounds,
 }
 
 /// A parameter's value when the file gives none.
@@ -111,6 +119,8 @@ pub struct ParamDef {
     pub required: bool,
     /// Literal numbers must be at least this (an error before the run).
     pub min: Option<f64>,
+    /// Literal numbers must be greater than this.
+    pub above: Option<f64>,
     /// Literal numbers must be at most this.
     pub max: Option<f64>,
     pub doc: &'static str,
@@ -166,25 +176,66 @@ pub fn names() -> impl Iterator<Item = &'static str> {
     OPERATORS.iter().map(|d| d.name)
 }
 
-const fn param(key: &'static str, kind: ArgKind, default: Default, doc: &'static str) -> ParamDef {
+pub const fn param(
+    key: &'static str,
+    kind: ArgKind,
+    default: Default,
+    doc: &'static str,
+) -> ParamDef {
     ParamDef {
         key,
         kind,
         default,
         required: false,
         min: None,
+        above: None,
         max: None,
         doc,
     }
 }
 
-const fn required(key: &'static str, kind: ArgKind, doc: &'static str) -> ParamDef {
+/// A parameter whose literal values must be greater than `bound`.
+pub const fn above(key: &'static str, kind: ArgKind, bound: f64, doc: &'static str) -> ParamDef {
+    ParamDef {
+        key,
+        kind,
+        default: Default::None,
+        required: false,
+        min: None,
+        above: Some(bound),
+        max: None,
+        doc,
+    }
+}
+
+/// A parameter whose literal values must be at least `bound`.
+pub const fn at_least(
+    key: &'static str,
+    kind: ArgKind,
+    default: Default,
+    bound: f64,
+    doc: &'static str,
+) -> ParamDef {
+    ParamDef {
+        key,
+        kind,
+        default,
+        required: false,
+        min: Some(bound),
+        above: None,
+        max: None,
+        doc,
+    }
+}
+
+pub const fn required(key: &'static str, kind: ArgKind, doc: &'static str) -> ParamDef {
     ParamDef {
         key,
         kind,
         default: Default::None,
         required: true,
         min: None,
+        above: None,
         max: None,
         doc,
     }
@@ -253,6 +304,7 @@ const fn spread(key: &'static str, doc: &'static str) -> ParamDef {
         default: Default::None,
         required: false,
         min: Some(0.0),
+        above: None,
         max: None,
         doc,
     }
@@ -280,6 +332,7 @@ macro_rules! command_params {
                 default: Default::None,
                 required: false,
                 min: Some(0.0),
+                above: None,
                 max: Some(1.0),
                 doc: "chance of applying to each matched primitive, in [0, 1] (default 1)",
             },
@@ -296,6 +349,99 @@ const SPLIT_FACE: &[ParamDef] = command_params!(param(
     Default::None,
     "secondary condition over the face's nodes: which to join to the new node"
 ));
+
+const TREE: ParamDef = required(
+    "tree",
+    Tree,
+    "the shape: the name of an `[sdf.NAME]` tree, or a tree written inline",
+);
+const CELL: ParamDef = above(
+    "cell",
+    Scalar,
+    0.0,
+    "grid cell edge in model units (default: 64 cells along the longest side)",
+);
+const MESHER: ParamDef = param(
+    "mesher",
+    Choice(&["marching_cubes", "dual_contouring"]),
+    Default::Choice(0),
+    "\"marching_cubes\" (smooth shapes) or \"dual_contouring\" (sharp edges and corners)",
+);
+const VERTEX: ParamDef = param(
+    "vertex",
+    Choice(&["linear", "midpoint", "refine"]),
+    Default::Choice(0),
+    "where a vertex sits on a grid edge: interpolated (\"linear\"), at the midpoint, or refined on the field (\"refine\": 12 regula falsi steps)",
+);
+
+/// The meshing parameters of every step that meshes a field, after the
+/// step's own (`$first`).
+macro_rules! meshing_params {
+    ($($first:expr),*) => {
+        &[
+            $($first,)*
+            CELL,
+            ParamDef {
+                key: "cells",
+                kind: Scalar,
+                default: Default::None,
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: None,
+                doc: "or this many cells along the longest side of the domain (64)",
+            },
+            MESHER,
+            VERTEX,
+            param(
+                "grid",
+                Choice(&["lattice_half", "lattice", "linspace"]),
+                Default::Choice(0),
+                "sample placement: cell centres of a lattice through the origin offset by half a cell (\"lattice_half\", no sample on a coordinate plane), the lattice k·h, or N evenly spaced samples spanning the domain (\"linspace\", as scikit-image)",
+            ),
+            at_least(
+                "padding",
+                Scalar,
+                Default::Number(1.0),
+                0.0,
+                "cells added around the shape's bounding box (1)",
+            ),
+            param(
+                "domain",
+                Bounds,
+                Default::None,
+                "mesh this box instead, [[x, y, z], [x, y, z]]: a shape it cuts is capped",
+            ),
+        ]
+    };
+}
+
+const SDF: &[ParamDef] = meshing_params!(TREE);
+const SDF_PART: &[ParamDef] = meshing_params!(
+    TREE,
+    param(
+        "relative",
+        Bool,
+        Default::Bool(true),
+        "scale the tree (and the cell) by the primitive's size: √area of a face, length of an edge, radius of a node (true)",
+    )
+);
+const SDF_BOOLEAN: &[ParamDef] = meshing_params!(
+    TREE,
+    param(
+        "operation",
+        Choice(&["difference", "union", "intersection"]),
+        Default::Choice(0),
+        "the mesh minus, plus or intersected with the tree (\"difference\")",
+    ),
+    at_least(
+        "blend",
+        Scalar,
+        Default::Number(0.0),
+        0.0,
+        "blend radius of a smooth operation (0: sharp)",
+    )
+);
 
 const ANY: &[Domain] = &[Vert, Edge, Face];
 const FACES: &[Domain] = &[Face];
@@ -442,6 +588,7 @@ pub static OPERATORS: &[OperatorDef] = &[
                 default: Default::None,
                 required: false,
                 min: Some(0.0),
+                above: None,
                 max: None,
                 doc: "merge vertices at most this far apart (0: identical positions)",
             },
@@ -775,11 +922,68 @@ pub static OPERATORS: &[OperatorDef] = &[
                 Default::Bool(false),
                 "keep the wire edges (false)",
             ),
+            param(
+                "method",
+                Choice(&["tubes", "field"]),
+                Default::Choice(0),
+                "\"tubes\": a polygonal tube per wire edge (fast; tubes overlap at branches); \"field\": one watertight solid per connected skeleton, meshed from a smooth union of round cones",
+            ),
+            at_least(
+                "blend",
+                Scalar,
+                Default::None,
+                0.0,
+                "field: blend radius at branches (default: half the smallest node radius)",
+            ),
+            at_least(
+                "min_radius",
+                Scalar,
+                Default::None,
+                0.0,
+                "field: thinner nodes are thickened to this radius (the cell follows the thinnest node)",
+            ),
+            CELL_SKIN,
+            MESHER,
+            VERTEX,
         ],
         exclusive: &[],
-        summary: "turn every wire edge into a tapered tube",
+        summary: "turn every wire edge into a tapered tube, or the skeleton into one smooth solid",
+    },
+    OperatorDef {
+        id: OpId::Sdf,
+        name: "sdf",
+        family: Family::Create,
+        domains: &[],
+        params: SDF,
+        exclusive: &[("cell", "cells")],
+        summary: "create: a signed distance tree, meshed (closed, manifold, outward)",
+    },
+    OperatorDef {
+        id: OpId::SdfPart,
+        name: "sdf_part",
+        family: Family::Kernel,
+        domains: &[Face, Vert, Edge],
+        params: SDF_PART,
+        exclusive: &[("cell", "cells")],
+        summary: "a meshed signed distance tree placed in the frame of every selected primitive (a face's centre and normal, a node's frame, an edge's midpoint and direction), appended",
+    },
+    OperatorDef {
+        id: OpId::SdfBoolean,
+        name: "sdf_boolean",
+        family: Family::WholeMesh,
+        domains: &[Face],
+        params: SDF_BOOLEAN,
+        exclusive: &[("cell", "cells")],
+        summary: "combine the mesh with a signed distance tree through the mesh's distance field, and re-mesh the result",
     },
 ];
+
+const CELL_SKIN: ParamDef = above(
+    "cell",
+    Scalar,
+    0.0,
+    "field: grid cell edge (default: half the smallest node radius)",
+);
 
 #[cfg(test)]
 mod tests {

@@ -9,6 +9,7 @@ use crate::kernel::Domain;
 
 use super::expr::Expr;
 use super::operators::{ArgKind, OperatorDef};
+use super::sdf_tree::SdfForest;
 
 /// A compiled rule file.
 #[derive(Debug, Clone)]
@@ -47,6 +48,9 @@ pub struct Program {
     /// caller reads them before the run (the engine does no I/O) and hands
     /// them over by index ([`Op::Import`]'s `resource`).
     pub resources: Vec<Resource>,
+    /// Every signed distance tree, referenced by node index from
+    /// [`Arg::Tree`].
+    pub sdf: SdfForest,
 }
 
 /// A file a rule file refers to.
@@ -339,6 +343,10 @@ pub enum Arg {
     Choice(usize),
     /// The index of the file in [`Program::resources`].
     Resource(usize),
+    /// The root node of a tree in [`Program::sdf`].
+    Tree(usize),
+    /// A box: lowest corner, highest corner.
+    Bounds(Box<[Vector; 2]>),
 }
 
 impl Call {
@@ -404,6 +412,23 @@ impl Call {
             Arg::Choice(i) => Some(names[*i]),
             Arg::Absent => None,
             other => panic!("`{}.{key}` is {other:?}, not a choice", self.def.name),
+        }
+    }
+
+    /// The root node (in [`Program::sdf`]) of a tree parameter.
+    pub fn tree(&self, key: &str) -> Option<usize> {
+        match self.arg(key) {
+            Arg::Tree(i) => Some(*i),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a tree", self.def.name),
+        }
+    }
+
+    pub fn bounds(&self, key: &str) -> Option<&[Vector; 2]> {
+        match self.arg(key) {
+            Arg::Bounds(b) => Some(b),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a box", self.def.name),
         }
     }
 

@@ -22,6 +22,7 @@ use super::diagnostic::RuleError;
 use super::diagnostic::SourceFile;
 use super::expr::BUILTIN_CONSTANT_NAMES;
 use super::operators::{self, ArgKind, Family, OperatorDef, ParamDef};
+use super::sdf_kinds::{self, Children, KindDef, CHILDREN_KEY, CHILD_KEY, KIND_KEY, PLACEMENT};
 use super::spanned::SourceFormat;
 use crate::kernel::Domain;
 
@@ -111,8 +112,37 @@ fn parameter(p: &ParamDef) -> Value {
         ArgKind::Choice(names) => json!({ "enum": names }),
         ArgKind::Path => json!({ "type": "string", "minLength": 1 }),
         ArgKind::NodeCondition => r("condition"),
+        ArgKind::Tree => r("sdf_tree"),
+        ArgKind::Bounds => {
+            json!({ "type": "array", "items": r("vector3"), "minItems": 2, "maxItems": 2 })
+        }
     };
     describe(schema, p.doc)
+}
+
+/// The schema of one signed distance node kind: `kind`, its parameters,
+/// its children, the placement keys.
+fn sdf_kind(kind: &KindDef) -> Value {
+    let mut properties: Vec<(&str, Value)> = vec![(KIND_KEY, json!({ "const": kind.name }))];
+    properties.extend(kind.params.iter().map(|p| (p.key, parameter(p))));
+    match kind.children {
+        Children::None => {}
+        Children::One => properties.push((CHILD_KEY, describe(r("sdf_tree"), "the child tree"))),
+        Children::Many { min } => properties.push((
+            CHILDREN_KEY,
+            json!({ "type": "array", "items": r("sdf_tree"), "minItems": min,
+                    "description": "the child trees (names or tables)" }),
+        )),
+    }
+    properties.extend(PLACEMENT.iter().map(|p| (p.key, parameter(p))));
+    let mut required: Vec<&str> = vec![KIND_KEY];
+    required.extend(kind.params.iter().filter(|p| p.required).map(|p| p.key));
+    match kind.children {
+        Children::None => {}
+        Children::One => required.push(CHILD_KEY),
+        Children::Many { .. } => required.push(CHILDREN_KEY),
+    }
+    describe(object(properties, &required), kind.summary)
 }
 
 /// The schema of an operator's value: its parameters, the required ones,
@@ -296,6 +326,19 @@ pub fn schema() -> Value {
             "description": "[x, y, z] (numbers or expressions), or one value for all three" }),
     );
     definitions.insert(
+        "vector3".into(),
+        json!({ "type": "array", "items": r("value"), "minItems": 3, "maxItems": 3 }),
+    );
+    definitions.insert(
+        "sdf_tree".into(),
+        json!({ "anyOf": [ { "type": "string", "minLength": 1 }, r("sdf_node") ],
+                "description": "the name of an [sdf.NAME] tree, or a tree table with a `kind`" }),
+    );
+    definitions.insert(
+        "sdf_node".into(),
+        json!({ "oneOf": sdf_kinds::KINDS.iter().map(sdf_kind).collect::<Vec<_>>() }),
+    );
+    definitions.insert(
         "pair".into(),
         json!({ "type": "array", "items": r("value"), "minItems": 2, "maxItems": 2 }),
     );
@@ -461,6 +504,13 @@ pub fn schema() -> Value {
                 "description": "compound commands, applied by compound = \"NAME\"",
                 "propertyNames": { "pattern": "^[A-Za-z_][A-Za-z0-9_]*$" },
                 "additionalProperties": r("compound") }),
+            ),
+            (
+                "sdf",
+                json!({
+                "type": "object",
+                "description": "signed distance trees, used by the sdf operators' `tree` and by other trees' children",
+                "additionalProperties": r("sdf_node") }),
             ),
             (
                 "policy",

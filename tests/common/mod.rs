@@ -48,10 +48,10 @@ pub fn read_mesh(path: &Path) -> graftal::io::IndexedMesh {
 }
 
 /// The files a program imports, read as the command line would.
-pub fn inputs(p: &Program) -> std::sync::Arc<[std::sync::Arc<graftal::io::IndexedMesh>]> {
+pub fn inputs(p: &Program) -> std::sync::Arc<[graftal::grammar::Input]> {
     p.resources
         .iter()
-        .map(|r| std::sync::Arc::new(read_mesh(&r.path)))
+        .map(|r| graftal::grammar::Input::new(std::sync::Arc::new(read_mesh(&r.path))))
         .collect()
 }
 

@@ -810,21 +810,24 @@ pub(crate) fn search_pairs(
     }
     let tasks: Vec<(u32, u32)> = queue.into_iter().chain(leaves).collect();
     let share = (limits.max_tests / tasks.len().max(1) as u64).max(1);
-    let run = |task: (u32, u32)| {
-        let mut found = Found::new(limits.keep, share);
-        tree.descend(&mut vec![task], &mut found);
-        found
-    };
-    let results: Vec<Found> = if threads <= 1 {
-        tasks.iter().map(|&t| run(t)).collect()
-    } else {
+    // Runs the tasks numbered `which` with their shares, in parallel,
+    // returning what each found in `which`'s order.
+    let run_tasks = |which: &[usize], shares: &[u64]| -> Vec<Found> {
+        let run = |k: usize| {
+            let mut found = Found::new(limits.keep, shares[k]);
+            tree.descend(&mut vec![tasks[k]], &mut found);
+            found
+        };
+        if threads <= 1 {
+            return which.iter().map(|&k| run(k)).collect();
+        }
         let next = AtomicUsize::new(0);
         let work = || {
             let mut mine = Vec::new();
             loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&task) = tasks.get(k) else { break };
-                mine.push((k, run(task)));
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&k) = which.get(i) else { break };
+                mine.push((i, run(k)));
             }
             mine
         };
@@ -836,9 +839,39 @@ pub(crate) fn search_pairs(
             }
             all
         });
-        indexed.sort_unstable_by_key(|(k, _)| *k);
+        indexed.sort_unstable_by_key(|(i, _)| *i);
         indexed.into_iter().map(|(_, f)| f).collect()
     };
+    let mut shares = vec![share; tasks.len()];
+    let all: Vec<usize> = (0..tasks.len()).collect();
+    let mut results = run_tasks(&all, &shares);
+    // Work is rarely spread evenly (one long branch of a model holds most
+    // of the close pairs): tasks that ran out of their share run again
+    // with what the others left unused. The shares depend only on what
+    // the tasks found, so the answer is the same on any number of threads.
+    loop {
+        let spent: u64 = results
+            .iter()
+            .zip(&shares)
+            .map(|(f, s)| s - f.budget)
+            .fold(0, u64::saturating_add);
+        let left = limits.max_tests.saturating_sub(spent);
+        let again: Vec<usize> = all
+            .iter()
+            .copied()
+            .filter(|&k| results[k].exhausted)
+            .collect();
+        if again.is_empty() || left < again.len() as u64 {
+            break;
+        }
+        let extra = left / again.len() as u64;
+        for &k in &again {
+            shares[k] = shares[k].saturating_add(extra);
+        }
+        for (k, found) in again.iter().zip(run_tasks(&again, &shares)) {
+            results[*k] = found;
+        }
+    }
     let mut single = 0u64;
     let mut complete = true;
     let mut shared: FxHashSet<(Element, Element)> = FxHashSet::default();

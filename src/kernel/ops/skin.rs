@@ -330,7 +330,7 @@ fn build_tube(
 }
 
 /// The checked radius of node `v`.
-fn node_radius(mesh: &Mesh, v: VertId, options: &SkinOptions) -> Result<f64, OpError> {
+pub fn node_radius(mesh: &Mesh, v: VertId, options: &SkinOptions) -> Result<f64, OpError> {
     let radius = match mesh.attr(RADIUS, Domain::Vert, v.index()) {
         None => options.default_radius,
         Some(AttrValue::Scalar(r)) => r,

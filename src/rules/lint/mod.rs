@@ -38,6 +38,7 @@ use super::diagnostic::{content_span, line_column, RuleError, SourceFile};
 use super::expr::{Binary, Expr, Ternary, Tree, Unary};
 use super::operators::{self, ArgKind, Family};
 use super::program::{ParamKind, Program, Property};
+use super::sdf_kinds;
 use super::spanned::Spanned;
 
 /// How bad a finding is.
@@ -255,6 +256,9 @@ impl<'a> Linter<'a> {
             );
             steps.extend(&def.steps);
         }
+        for (_, table) in &self.ast.sdf.0 {
+            self.tree_table(&table.value, &mut out);
+        }
         for step in steps {
             let domain = match (&step.on, &step.op, &step.compound) {
                 (Some(on), _, _) => domain_of(on.value),
@@ -283,6 +287,61 @@ impl<'a> Linter<'a> {
             }
         }
         out
+    }
+
+    /// The expression sites of an inline tree (a name is linted where it
+    /// is defined).
+    fn tree(&self, value: &'a Spanned<ArgValue>, out: &mut Vec<Site<'a>>) {
+        if let ArgValue::Table(table) = &value.value {
+            self.tree_table(table, out);
+        }
+    }
+
+    /// The expression sites of a tree node: its numeric values (which see
+    /// parameters only) and its inline children.
+    fn tree_table(&self, table: &'a ast::Args, out: &mut Vec<Site<'a>>) {
+        for (key, value) in &table.0 {
+            match key.value.as_str() {
+                sdf_kinds::CHILD_KEY => self.tree(value, out),
+                sdf_kinds::CHILDREN_KEY => {
+                    if let ArgValue::List(items) = &value.value {
+                        for item in items {
+                            self.tree(item, out);
+                        }
+                    }
+                }
+                sdf_kinds::KIND_KEY => {}
+                _ => {
+                    let items: Vec<&'a Spanned<ArgValue>> = match &value.value {
+                        ArgValue::List(items) => items.iter().collect(),
+                        _ => vec![value],
+                    };
+                    // Paths and choice names are strings too: only keys
+                    // of numeric kinds hold expressions.
+                    let numeric = sdf_kinds::KINDS
+                        .iter()
+                        .flat_map(|k| k.params)
+                        .chain(sdf_kinds::PLACEMENT)
+                        .any(|p| {
+                            p.key == key.value
+                                && matches!(p.kind, ArgKind::Scalar | ArgKind::Vector)
+                        });
+                    if !numeric {
+                        continue;
+                    }
+                    for item in items {
+                        if let ArgValue::Text(text) = &item.value {
+                            out.push(Site {
+                                text,
+                                span: self.content_span(item, text),
+                                context: Context::Operator,
+                                key: "sdf",
+                            });
+                        }
+                    }
+                }
+            }
+        }
     }
 
     fn condition(&self, s: &'a Spanned<String>, domain: Domain, key: &'static str) -> Site<'a> {
@@ -377,10 +436,22 @@ impl<'a> Linter<'a> {
                 ArgKind::Scalar | ArgKind::Vector | ArgKind::Pair | ArgKind::ScalarList => {
                     (Context::Operator, "operator")
                 }
+                ArgKind::Bounds => (Context::Operator, "operator"),
+                ArgKind::Tree => {
+                    // Inline trees; named ones are linted with `[sdf]`.
+                    self.tree(value, out);
+                    continue;
+                }
                 ArgKind::Bool | ArgKind::Choice(_) | ArgKind::Path => continue,
             };
             let items: Vec<&'a Spanned<ArgValue>> = match &value.value {
-                ArgValue::List(items) => items.iter().collect(),
+                ArgValue::List(items) => items
+                    .iter()
+                    .flat_map(|i| match &i.value {
+                        ArgValue::List(inner) => inner.iter().collect(),
+                        _ => vec![i],
+                    })
+                    .collect(),
                 _ => vec![value],
             };
             for item in items {

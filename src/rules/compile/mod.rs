@@ -19,7 +19,10 @@ use super::program::{
     ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
 };
 use super::random::stream_key;
+
+mod sdf;
 use super::spanned::{SourceFormat, Spanned};
+pub use sdf::{tree_limits, MAX_TREE_DEPTH};
 
 /// A `--set name=value` override from the command line.
 #[derive(Debug, Clone, PartialEq)]
@@ -178,6 +181,12 @@ struct Compiler<'a> {
     param_names: Vec<String>,
     /// Files the program needs (see [`Program::resources`]).
     resources: std::cell::RefCell<Vec<Resource>>,
+    /// Directory relative paths resolve against.
+    base_dir: &'a Path,
+    /// The file's `[sdf.NAME]` tables.
+    sdf_defs: &'a ast::Named<Spanned<ast::Args>>,
+    /// Trees compiled so far.
+    trees: std::cell::RefCell<sdf::TreeState>,
 }
 
 impl<'a> Compiler<'a> {
@@ -195,6 +204,17 @@ impl<'a> Compiler<'a> {
 
     fn error(&self, span: Option<Range<usize>>, message: impl Into<String>) -> RuleError {
         RuleError::at(self.file, span, message)
+    }
+
+    /// `file:line:column` of `span`, for errors found at run time.
+    fn location(&self, span: Option<&Range<usize>>) -> String {
+        match span {
+            Some(span) => {
+                let (line, column) = super::diagnostic::line_column(&self.file.text, span.start);
+                format!("{}:{line}:{column}", self.file.name)
+            }
+            None => self.file.name.clone(),
+        }
     }
 
     /// The span of a string value's content, for locating expression errors.
@@ -455,6 +475,9 @@ pub fn compile(
         file,
         param_names: Vec::new(),
         resources: std::cell::RefCell::new(Vec::new()),
+        base_dir,
+        sdf_defs: &ast.sdf,
+        trees: std::default::Default::default(),
     };
 
     // Slots are assigned in name order: TOML does not keep table order, and
@@ -520,10 +543,14 @@ pub fn compile(
                     name: format!("--set {}", o.name),
                     text: o.value.clone(),
                 };
+                let no_trees = ast::Named::default();
                 let c = Compiler {
                     file: &source,
                     param_names: compiler.param_names.clone(),
                     resources: std::cell::RefCell::new(Vec::new()),
+                    base_dir,
+                    sdf_defs: &no_trees,
+                    trees: std::default::Default::default(),
                 };
                 let expr = c.param_expr(&o.value, Some(0..o.value.len()))?;
                 (ParamKind::Expr(expr), None)
@@ -539,6 +566,7 @@ pub fn compile(
         });
     }
     let params = order_params(&compiler, &declared, params)?;
+    compiler.compile_named_trees()?;
 
     let default_tolerance = match &ast.tolerance {
         Some(t) => check_tolerance(&compiler, t)?,
@@ -641,6 +669,8 @@ pub fn compile(
         }
     }
 
+    compiler.validate_trees(&params)?;
+
     let mut hash_input = file.text.clone();
     for o in overrides {
         hash_input.push_str(&format!("\n--set {}={}", o.name, o.value));
@@ -660,6 +690,7 @@ pub fn compile(
         on_intersection,
         may_cancel,
         resources: compiler.resources.take(),
+        sdf: compiler.trees.take().forest,
     })
 }
 
@@ -1446,13 +1477,7 @@ impl Expander<'_, '_> {
             (None, None) => unreachable!("checked above"),
         };
         self.check_preceding_edge(&op, op_span.clone(), &op_key.value)?;
-        let location = match op_span {
-            Some(span) => {
-                let (line, column) = super::diagnostic::line_column(&c.file.text, span.start);
-                format!("{}:{line}:{column}", c.file.name)
-            }
-            None => c.file.name.clone(),
-        };
+        let location = c.location(op_span.as_ref());
         let policy = self.step_policy(step, &op, &op_key.value)?;
         Ok(StepBody {
             location,
@@ -1681,7 +1706,7 @@ fn check_args<'a>(
         if values[i].is_some() {
             return Err(c.error(key.span.clone(), format!("duplicate field `{}`", key.value)));
         }
-        check_value(c, def, &def.params[i], value)?;
+        check_value(c, def.name, &def.params[i], value)?;
         values[i] = Some(value);
     }
     for (p, v) in def.params.iter().zip(&values) {
@@ -1709,7 +1734,7 @@ fn check_args<'a>(
 /// Checks one value's shape (and a literal number's bounds) for its parameter.
 fn check_value(
     c: &Compiler,
-    def: &OperatorDef,
+    owner: &str,
     p: &ParamDef,
     value: &Spanned<ArgValue>,
 ) -> Result<(), RuleError> {
@@ -1779,6 +1804,35 @@ fn check_value(
         (ArgKind::Path, _) => return Err(wrong("a file path string")),
         (ArgKind::NodeCondition, ArgValue::Text(_)) => {}
         (ArgKind::NodeCondition, _) => return Err(wrong("a condition string")),
+        (ArgKind::Tree, ArgValue::Text(_) | ArgValue::Name(_) | ArgValue::Table(_)) => {}
+        (ArgKind::Tree, _) => {
+            return Err(wrong(
+                "the name of an [sdf.NAME] tree, or a tree table such as { kind = \"sphere\", radius = 1 }",
+            ))
+        }
+        (ArgKind::Bounds, ArgValue::List(corners))
+            if corners.len() == 2
+                && corners.iter().all(
+                    |c| matches!(&c.value, ArgValue::List(x) if x.len() == 3 && scalars(x)),
+                ) =>
+        {
+            for corner in corners {
+                if let ArgValue::List(items) = &corner.value {
+                    for item in items {
+                        if let ArgValue::Number(x) = item.value {
+                            if !x.is_finite() {
+                                return Err(c.error(item.span.clone(), "numbers must be finite"));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (ArgKind::Bounds, _) => {
+            return Err(wrong(
+                "a box [[x, y, z], [x, y, z]] (lowest corner, highest corner)",
+            ))
+        }
     }
     let mut literals: Vec<(f64, Option<Range<usize>>)> = Vec::new();
     match &value.value {
@@ -1796,6 +1850,17 @@ fn check_value(
         if !x.is_finite() {
             return Err(c.error(span, "numbers must be finite"));
         }
+        if let Some(bound) = p.above.filter(|&b| x <= b) {
+            let what = if bound == 0.0 {
+                "positive".to_string()
+            } else {
+                format!("greater than {bound}")
+            };
+            return Err(c.error(
+                span,
+                format!("`{}` of `{owner}` must be {what}, got {x}", p.key),
+            ));
+        }
         let below = p.min.is_some_and(|m| x < m);
         let above = p.max.is_some_and(|m| x > m);
         if below || above {
@@ -1805,8 +1870,8 @@ fn check_value(
                     "`{}` is a spread σ (values are drawn from U(−σ, σ)) and cannot be negative, got {x}",
                     p.key
                 ),
-                (Some(lo), None) => format!("`{}` of `{}` must be at least {lo}, got {x}", p.key, def.name),
-                (None, Some(hi)) => format!("`{}` of `{}` must be at most {hi}, got {x}", p.key, def.name),
+                (Some(lo), None) => format!("`{}` of `{owner}` must be at least {lo}, got {x}", p.key),
+                (None, Some(hi)) => format!("`{}` of `{owner}` must be at most {hi}, got {x}", p.key),
                 (None, None) => unreachable!("a bound was passed"),
             };
             return Err(c.error(span, message));
@@ -1815,9 +1880,24 @@ fn check_value(
     Ok(())
 }
 
-impl CheckedArgs<'_> {
+/// Checked values by parameter index, with typed accessors.
+struct CheckedValues<'v, 'a> {
+    params: &'v [ParamDef],
+    values: &'v [Option<&'a Spanned<ArgValue>>],
+}
+
+impl<'a> CheckedArgs<'a> {
+    fn view(&self) -> CheckedValues<'_, 'a> {
+        CheckedValues {
+            params: self.def.params,
+            values: &self.values,
+        }
+    }
+}
+
+impl CheckedValues<'_, '_> {
     fn value(&self, key: &str) -> Option<&Spanned<ArgValue>> {
-        let i = self.def.params.iter().position(|p| p.key == key)?;
+        let i = self.params.iter().position(|p| p.key == key)?;
         self.values[i]
     }
 
@@ -1892,8 +1972,53 @@ fn compile_op(
     if def.family == Family::Command {
         return Ok(Op::Command(Box::new(compile_command(c, &checked, domain)?)));
     }
-    let mut compiled: Vec<Arg> = Vec::with_capacity(def.params.len());
-    for p in def.params {
+    check_method_params(c, &checked)?;
+    let args = compile_params(c, def.name, def.params, &checked.values, base_dir)?;
+    Ok(Op::Call(Call { def, args }))
+}
+
+/// Parameters that belong to one `method` of an operator: written with
+/// the other, they are an error (they would be silently ignored).
+fn check_method_params(c: &Compiler, checked: &CheckedArgs) -> Result<(), RuleError> {
+    if checked.def.id != OpId::Skin {
+        return Ok(());
+    }
+    let view = checked.view();
+    let field = view.text("method").is_some_and(|m| m.value == "field");
+    let (method, other_only): (&str, &[&str]) = if field {
+        ("field", &["sides", "joints"])
+    } else {
+        (
+            "tubes",
+            &["blend", "min_radius", "cell", "mesher", "vertex"],
+        )
+    };
+    for key in other_only {
+        if let Some(v) = view.value(key) {
+            let other = if field { "tubes" } else { "field" };
+            return Err(c
+                .error(
+                    v.span.clone(),
+                    format!("`{key}` belongs to `method = \"{other}\"`, and this skin uses \"{method}\""),
+                )
+                .with_help(format!("remove `{key}`, or set `method = \"{other}\"`")));
+        }
+    }
+    Ok(())
+}
+
+/// Compiles checked values (by parameter index) of `params` into one
+/// [`Arg`] each, defaults filled in.
+fn compile_params(
+    c: &Compiler,
+    owner: &str,
+    params: &[ParamDef],
+    values: &[Option<&Spanned<ArgValue>>],
+    base_dir: &Path,
+) -> Result<Vec<Arg>, RuleError> {
+    let checked = CheckedValues { params, values };
+    let mut compiled: Vec<Arg> = Vec::with_capacity(params.len());
+    for p in params {
         let arg = match (p.kind, checked.value(p.key)) {
             (ArgKind::Scalar, Some(_)) => {
                 Arg::Scalar(c.scalar(&checked.scalar(p.key).expect("present"))?)
@@ -1930,20 +2055,30 @@ fn compile_op(
                 } else {
                     base_dir.join(path)
                 };
-                let location = match &written.span {
-                    Some(span) => {
-                        let (line, column) =
-                            super::diagnostic::line_column(&c.file.text, span.start);
-                        format!("{}:{line}:{column}", c.file.name)
-                    }
-                    None => c.file.name.clone(),
-                };
+                let location = c.location(written.span.as_ref());
                 Arg::Resource(c.resource(Resource {
                     path,
                     written: written.value,
                     location,
                 }))
             }
+            (ArgKind::Tree, Some(v)) => Arg::Tree(c.tree_reference(v, owner)?),
+            (ArgKind::Bounds, Some(v)) => match &v.value {
+                ArgValue::List(corners) => {
+                    let corner = |k: usize| -> Result<Vector, RuleError> {
+                        let ArgValue::List(items) = &corners[k].value else {
+                            unreachable!("checked to be a box")
+                        };
+                        Ok(Vector([
+                            c.scalar(&as_scalar(&items[0]))?,
+                            c.scalar(&as_scalar(&items[1]))?,
+                            c.scalar(&as_scalar(&items[2]))?,
+                        ]))
+                    };
+                    Arg::Bounds(Box::new([corner(0)?, corner(1)?]))
+                }
+                _ => unreachable!("checked to be a box"),
+            },
             (ArgKind::Element | ArgKind::ElementVector | ArgKind::NodeCondition, _) => {
                 unreachable!("per-primitive parameters belong to G³ commands")
             }
@@ -1959,8 +2094,7 @@ fn compile_op(
                 Default::Bool(b) => Arg::Bool(b),
                 Default::Choice(i) => Arg::Choice(i),
                 Default::SameAs(other) => {
-                    let i = def
-                        .params
+                    let i = params
                         .iter()
                         .position(|q| q.key == other)
                         .expect("registered");
@@ -1970,16 +2104,18 @@ fn compile_op(
         };
         compiled.push(arg);
     }
-    Ok(Op::Call(Call {
-        def,
-        args: compiled,
-    }))
+    Ok(compiled)
 }
 
 /// A G³ command's parameters (thesis 003 §2.4.3): conditions evaluated per
 /// matched primitive.
-fn compile_command(c: &Compiler, a: &CheckedArgs, domain: Domain) -> Result<Command, RuleError> {
-    let kind = match a.def.id {
+fn compile_command(
+    c: &Compiler,
+    checked: &CheckedArgs,
+    domain: Domain,
+) -> Result<Command, RuleError> {
+    let a = checked.view();
+    let kind = match checked.def.id {
         OpId::CreateEdge => CommandKind::CreateEdge,
         OpId::SplitEdge => CommandKind::SplitEdge,
         OpId::CreateFace => CommandKind::CreateFace,
@@ -1997,7 +2133,7 @@ fn compile_command(c: &Compiler, a: &CheckedArgs, domain: Domain) -> Result<Comm
             .map(|v| c.property_vector(domain, &v).map(Box::new))
             .transpose()
     };
-    let nodes = match a.def.param("nodes") {
+    let nodes = match checked.def.param("nodes") {
         Some(_) => a
             .text("nodes")
             .map(|n| c.condition(Domain::Vert, &n))
