@@ -457,3 +457,34 @@ fn every_node_kind_has_a_row_in_the_rule_reference() {
         );
     }
 }
+
+#[test]
+fn the_tree_in_its_box_is_skinned_inside_the_box() {
+    let dir = temp_dir();
+    let out = dir.path().join("tree.glb");
+    let o = graftal(&[
+        "run",
+        "rules/tree-in-box.toml",
+        "-o",
+        path_str(&out),
+        "--stats",
+        "-",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let s = stats(&o);
+    assert_eq!(
+        s["mesh"]["self_intersecting_face_pairs"], 0,
+        "the skin never crosses the box"
+    );
+    assert_eq!(s["mesh"]["close_vertex_pairs"], 0);
+    let skin = field_of(&s, "skin");
+    assert_eq!(skin["watertight"], true);
+    assert_eq!(skin["skeletons"], 1);
+    assert_eq!(skin["solids"], 1);
+    // The box is [-1, 1]² × [0, 2.2]; the skin is meshed 0.01 inside it.
+    let bounds = &s["mesh"]["bounds"];
+    assert_eq!(
+        bounds,
+        &serde_json::json!([[-1.0, -1.0, 0.0], [1.0, 1.0, 2.2]])
+    );
+}

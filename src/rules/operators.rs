@@ -374,6 +374,13 @@ const VERTEX: ParamDef = param(
     "where a vertex sits on a grid edge: interpolated (\"linear\"), at the midpoint, or refined on the field (\"refine\": 12 regula falsi steps)",
 );
 
+const DOMAIN: ParamDef = param(
+    "domain",
+    Bounds,
+    Default::None,
+    "mesh this box instead, [[x, y, z], [x, y, z]]: a shape it cuts is capped",
+);
+
 /// The meshing parameters of every step that meshes a field, after the
 /// step's own (`$first`).
 macro_rules! meshing_params {
@@ -406,12 +413,7 @@ macro_rules! meshing_params {
                 0.0,
                 "cells added around the shape's bounding box (1)",
             ),
-            param(
-                "domain",
-                Bounds,
-                Default::None,
-                "mesh this box instead, [[x, y, z], [x, y, z]]: a shape it cuts is capped",
-            ),
+            DOMAIN,
         ]
     };
 }
@@ -945,6 +947,7 @@ pub static OPERATORS: &[OperatorDef] = &[
             CELL_SKIN,
             MESHER,
             VERTEX,
+            DOMAIN,
         ],
         exclusive: &[],
         summary: "turn every wire edge into a tapered tube, or the skeleton into one smooth solid",
