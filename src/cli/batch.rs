@@ -606,7 +606,11 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         args: &args,
         want_stats: !matches!(stats_sink, StatsSink::None),
         pretty_stats: matches!(stats_sink, StatsSink::Single(_) | StatsSink::Files(_)),
+        mesh_progress: crate::sdf::Progress(Some(&MESH_PROGRESS)),
     };
+    // A batch shows variants; a single run that meshes a field for a while
+    // shows the blocks meshed.
+    let mesh_bar = MeshBar::start(!batch && !args.quiet && std::io::stderr().is_terminal());
 
     let started = Instant::now();
     let progress = Progress::new(
@@ -633,6 +637,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         !stdout_closed
     });
     progress.finish();
+    drop(mesh_bar);
     let elapsed = started.elapsed();
 
     if let StatsSink::File(path) = &stats_sink {
@@ -864,6 +869,8 @@ struct Context<'a> {
     want_stats: bool,
     /// Stats as pretty documents rather than NDJSON lines.
     pretty_stats: bool,
+    /// Where meshers count blocks for the meshing bar of a single run.
+    mesh_progress: crate::sdf::Progress,
 }
 
 /// Runs every variant on `-j` workers and hands each result to `emit` in
@@ -994,6 +1001,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         deadline: args.timeout.map(|s| started + Duration::from_secs_f64(s)),
         inputs: std::sync::Arc::clone(&context.inputs.meshes),
         max_cells: args.max_cells,
+        mesh_progress: context.mesh_progress,
         ..RunOptions::default()
     };
     let result = match grammar::run(program, &options) {
@@ -1082,6 +1090,63 @@ fn produce(context: &Context, v: &Variant) -> Produced {
 /// Lowercase hexadecimal.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The blocks every meshing of this process has announced and meshed.
+static MESH_PROGRESS: crate::sdf::MeshProgress = crate::sdf::MeshProgress::new();
+
+/// A bar of blocks meshed, drawn by its own thread once meshing has taken
+/// half a second (short runs never show it); cleared when dropped.
+struct MeshBar {
+    stop: std::sync::Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl MeshBar {
+    fn start(show: bool) -> MeshBar {
+        let stop = std::sync::Arc::new(AtomicBool::new(false));
+        let thread = show.then(|| {
+            let stop = std::sync::Arc::clone(&stop);
+            std::thread::spawn(move || {
+                let started = Instant::now();
+                let mut bar: Option<indicatif::ProgressBar> = None;
+                while !stop.load(Ordering::Relaxed) {
+                    std::thread::sleep(Duration::from_millis(100));
+                    let (done, total) = MESH_PROGRESS.get();
+                    if total == 0 || started.elapsed() < Duration::from_millis(500) {
+                        continue;
+                    }
+                    let bar = bar.get_or_insert_with(|| {
+                        let bar = indicatif::ProgressBar::with_draw_target(
+                            Some(total),
+                            indicatif::ProgressDrawTarget::stderr(),
+                        );
+                        if let Ok(style) = indicatif::ProgressStyle::with_template(
+                            "{elapsed_precise} [{bar:30}] {pos}/{len} blocks meshed, ETA {eta}",
+                        ) {
+                            bar.set_style(style.progress_chars("=> "));
+                        }
+                        bar
+                    });
+                    bar.set_length(total);
+                    bar.set_position(done);
+                }
+                if let Some(bar) = bar {
+                    bar.finish_and_clear();
+                }
+            })
+        });
+        MeshBar { stop, thread }
+    }
+}
+
+impl Drop for MeshBar {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
 }
 
 /// An indicatif bar on a terminal; nothing otherwise.

@@ -195,6 +195,7 @@ pub(super) struct FieldContext<'a> {
     pub inputs: &'a [Input],
     /// `--max-cells`.
     pub max_cells: u64,
+    pub mesh_progress: sdf::Progress,
     /// Primitives the model may still grow by.
     pub budget: u64,
     /// Whether the program keeps G³ layers (a re-meshed model needs them).
@@ -580,6 +581,7 @@ fn mesh_options(ctx: &FieldContext, call: &Call) -> Result<MeshOptions, StepErro
         },
         threads: 0,
         timings: true,
+        progress: ctx.mesh_progress,
     })
 }
 

@@ -33,6 +33,7 @@ pub(super) struct Context<'a> {
     pub domain: Domain,
     /// `--max-cells`.
     pub max_cells: u64,
+    pub mesh_progress: crate::sdf::Progress,
     /// Primitives the model may still grow by (for operators that cannot
     /// predict their growth: meshing a field).
     pub budget: u64,
@@ -271,6 +272,7 @@ pub(super) fn apply(
         sdf: ctx.sdf,
         inputs: ctx.inputs,
         max_cells: ctx.max_cells,
+        mesh_progress: ctx.mesh_progress,
         budget: ctx.budget,
         uses_graph: ctx.uses_graph,
     };

@@ -57,6 +57,8 @@ pub struct RunOptions {
     /// Stop with [`RunErrorKind::TooLarge`] before meshing a field on a
     /// grid of more cells than this (checked before allocating).
     pub max_cells: u64,
+    /// Where meshers count the blocks they mesh (a progress bar reads it).
+    pub mesh_progress: crate::sdf::Progress,
 }
 
 /// Default `--max-cells`: 2³⁰, a 1024³ grid.
@@ -79,6 +81,7 @@ impl Default for RunOptions {
             max_evaluations: DEFAULT_MAX_EVALUATIONS,
             inputs: Arc::from(Vec::new()),
             max_cells: DEFAULT_MAX_CELLS,
+            mesh_progress: crate::sdf::Progress(None),
         }
     }
 }
@@ -149,6 +152,7 @@ struct Runner<'p> {
     program: &'p Program,
     inputs: Arc<[Input]>,
     max_cells: u64,
+    mesh_progress: crate::sdf::Progress,
     warnings: Vec<String>,
     seed: u64,
     max_elements: usize,
@@ -226,6 +230,7 @@ impl<'p> Runner<'p> {
             program,
             inputs: Arc::clone(&options.inputs),
             max_cells: options.max_cells,
+            mesh_progress: options.mesh_progress,
             warnings: Vec::new(),
             seed: options.seed.unwrap_or(program.default_seed),
             max_elements: options.max_elements,
@@ -613,6 +618,7 @@ impl Runner<'_> {
             sdf: &self.program.sdf,
             domain: step.domain,
             max_cells: self.max_cells,
+            mesh_progress: self.mesh_progress,
             budget: self.max_elements.saturating_sub(total) as u64,
             uses_graph: self.program.uses_graph,
         };

@@ -106,7 +106,11 @@ pub(crate) fn mesh_blocks(
         .par_iter()
         .map_init(
             || (field.evaluator(), BlockSamples::new(), SampleScratch::new()),
-            |(ev, bs, ss), &b| phase1(grid, ev.as_mut(), l, b, nb, opts, bs, ss),
+            |(ev, bs, ss), &b| {
+                let p = phase1(grid, ev.as_mut(), l, b, nb, opts, bs, ss);
+                opts.progress.advance();
+                p
+            },
         )
         .collect();
     let ids: Vec<usize> = p1.iter().map(|b| b.id).collect();

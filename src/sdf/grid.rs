@@ -27,6 +27,8 @@
 //! output is closed even when an explicit domain cuts the solid; a block on
 //! the border that is entirely inside is therefore never skipped.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use glam::DVec3;
 
 use crate::sdf::aabb::Aabb;
@@ -115,6 +117,69 @@ pub struct MeshOptions {
     pub threads: usize,
     /// Measure field and mesh times (never part of the deterministic output).
     pub timings: bool,
+    /// Blocks to mesh and blocks meshed, for a progress bar (never part of
+    /// the output).
+    pub progress: Progress,
+}
+
+/// Where a mesher reports its progress: counters another thread may read
+/// (`None`: nowhere). Options compare equal whatever their progress.
+#[derive(Clone, Copy, Default)]
+pub struct Progress(pub Option<&'static MeshProgress>);
+
+impl Progress {
+    pub(crate) fn add_total(self, blocks: usize) {
+        if let Some(p) = self.0 {
+            p.total.fetch_add(blocks as u64, Ordering::Relaxed);
+        }
+    }
+
+    pub(crate) fn advance(self) {
+        if let Some(p) = self.0 {
+            p.done.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+impl PartialEq for Progress {
+    fn eq(&self, _: &Progress) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "Progress(on)"
+        } else {
+            "Progress(off)"
+        })
+    }
+}
+
+/// Blocks meshed so far of the blocks announced, summed over every meshing
+/// that reports here (a process-wide static: the CLI's bar reads it).
+#[derive(Debug, Default)]
+pub struct MeshProgress {
+    total: AtomicU64,
+    done: AtomicU64,
+}
+
+impl MeshProgress {
+    pub const fn new() -> MeshProgress {
+        MeshProgress {
+            total: AtomicU64::new(0),
+            done: AtomicU64::new(0),
+        }
+    }
+
+    /// (blocks meshed, blocks announced).
+    pub fn get(&self) -> (u64, u64) {
+        (
+            self.done.load(Ordering::Relaxed),
+            self.total.load(Ordering::Relaxed),
+        )
+    }
 }
 
 impl Default for MeshOptions {
@@ -129,6 +194,7 @@ impl Default for MeshOptions {
             limits: MeshLimits::default(),
             threads: 0,
             timings: false,
+            progress: Progress(None),
         }
     }
 }

@@ -82,6 +82,7 @@ pub(crate) fn mesh_blocks(
                 }
                 let r = block(grid, ev.as_mut(), l, b, nb, opts, sc);
                 tri_total.fetch_add(r.tris.len() as u64, std::sync::atomic::Ordering::Relaxed);
+                opts.progress.advance();
                 Some(r)
             },
         )

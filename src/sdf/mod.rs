@@ -68,8 +68,8 @@ mod tests;
 pub use aabb::Aabb;
 pub use error::{Result, SdfError};
 pub use grid::{
-    sample_grid, Field, FieldEval, GridKind, MeshLimits, MeshOptions, Mesher, Resolution,
-    VertexPlacement,
+    sample_grid, Field, FieldEval, GridKind, MeshLimits, MeshOptions, MeshProgress, Mesher,
+    Progress, Resolution, VertexPlacement,
 };
 pub use mesh_field::{MeshField, MeshFieldReport, SignMethod, SignMode};
 pub use mesher::{mesh, MeshOutput, MeshStats, Timings};
