@@ -10,4 +10,5 @@ pub mod grammar;
 pub mod io;
 pub mod kernel;
 pub mod rules;
+pub mod nurbs;
 pub mod sdf;
