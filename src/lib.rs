@@ -9,6 +9,6 @@ pub mod geom;
 pub mod grammar;
 pub mod io;
 pub mod kernel;
-pub mod rules;
 pub mod nurbs;
+pub mod rules;
 pub mod sdf;

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::grammar::{FieldStats, RunOutput, StepStats};
+use crate::grammar::{FieldStats, RunOutput, StepStats, SurfaceStats};
 use crate::kernel::build::ImportReport;
 use glam::DVec3;
 
@@ -131,6 +131,48 @@ pub struct StepJson {
     /// Steps that mesh a signed distance field: what the meshing did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub field: Option<FieldJson>,
+    /// `nurbs` and `pn_smooth` steps: what the tessellation made.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<SurfaceJson>,
+}
+
+/// What tessellating a surface (or PN smoothing) did (see
+/// [`SurfaceStats`]).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct SurfaceJson {
+    /// Surfaces tessellated, or meshes smoothed.
+    pub runs: usize,
+    pub triangles: u64,
+    pub vertices: u64,
+    /// Largest distance between the surface and its triangles, sampled at
+    /// every triangle centroid and edge midpoint.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_deviation: Option<f64>,
+    /// Adaptive tessellation: highest edge level and refinement rounds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_level: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rounds: Option<u32>,
+    /// Bézier patches (knot spans u × v) of the surfaces.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub patches: Option<usize>,
+    /// `pn_smooth`: the level.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pn_level: Option<u32>,
+}
+
+fn surface_json(s: &SurfaceStats) -> SurfaceJson {
+    let tessellated = s.pn_level.is_none();
+    SurfaceJson {
+        runs: s.runs,
+        triangles: s.triangles,
+        vertices: s.vertices,
+        max_deviation: tessellated.then_some(s.max_deviation),
+        max_level: (s.max_level > 0).then_some(s.max_level),
+        rounds: (s.rounds > 0).then_some(s.rounds),
+        patches: tessellated.then_some(s.patches),
+        pn_level: s.pn_level,
+    }
 }
 
 /// What meshing a field did (see [`FieldStats`]).
@@ -224,6 +266,7 @@ pub fn steps_json(steps: &[StepStats], timings: bool) -> Vec<StepJson> {
             created_faces: s.created.faces,
             time_ms: timings.then_some(s.elapsed.as_secs_f64() * 1e3),
             field: s.field.as_deref().map(|f| field_json(f, timings)),
+            surface: s.surface.as_deref().map(surface_json),
         })
         .collect()
 }

@@ -21,6 +21,7 @@ pub mod frame;
 pub mod indexed;
 pub mod interval;
 pub mod names;
+pub mod normals;
 pub mod polygon;
 pub mod predicates;
 pub mod sink;

@@ -91,6 +91,9 @@ pub enum StepError {
         /// Boxed: the pillar's errors are large and rare.
         error: Box<crate::sdf::SdfError>,
     },
+    /// A parametric surface could not be built or tessellated.
+    #[error("nurbs surface `{surface}`: {message}")]
+    Surface { surface: String, message: String },
     /// A meshing parameter evaluated out of range.
     #[error("`{key}` {message}")]
     Option { key: &'static str, message: String },

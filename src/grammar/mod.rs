@@ -28,6 +28,7 @@ mod operators;
 mod properties;
 mod run;
 pub mod scope;
+mod surfaces;
 
 pub use error::{RunError, RunErrorKind, StepError};
 pub use fields::{FieldStats, Input, SkinCounts};
@@ -35,3 +36,4 @@ pub use run::{
     parameter_values, run, CreatedCounts, RunOptions, RunOutput, StepStats, DEFAULT_MAX_CELLS,
     DEFAULT_MAX_ELEMENTS, DEFAULT_MAX_EVALUATIONS,
 };
+pub use surfaces::SurfaceStats;

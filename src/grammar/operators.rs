@@ -10,6 +10,7 @@ use glam::DVec3;
 use super::error::StepError;
 use super::fields::{self, FieldApplied, FieldContext, FieldStats, Input};
 use super::graph;
+use super::surfaces;
 use crate::kernel::ops::delete::DeleteMode;
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::select::Adjacency;
@@ -29,6 +30,8 @@ pub(super) struct Context<'a> {
     pub inputs: &'a [Input],
     /// The program's signed distance trees.
     pub sdf: &'a SdfForest,
+    /// The program's parametric surfaces.
+    pub nurbs: &'a [crate::rules::nurbs_def::SurfaceDef],
     /// The element kind the step selected.
     pub domain: Domain,
     /// `--max-cells`.
@@ -48,6 +51,8 @@ pub(super) struct Applied {
     pub applied: Option<usize>,
     /// What meshing a field did.
     pub field: Option<FieldStats>,
+    /// What tessellating a surface or PN smoothing did.
+    pub surface: Option<super::surfaces::SurfaceStats>,
     pub warnings: Vec<String>,
     /// The model was replaced as a whole (ids remembered before are void).
     pub replaced: bool,
@@ -59,6 +64,7 @@ impl From<FieldApplied> for Applied {
             made: f.made,
             applied: None,
             field: Some(f.stats),
+            surface: None,
             warnings: f.warnings,
             replaced: f.replaced,
         }
@@ -223,7 +229,7 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         OpId::Duplicate | OpId::Mirror => size(&sel.full()),
         OpId::MakeFace => 1,
         // Meshing a field cannot be predicted; the mesher stops at the budget.
-        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean => 0,
+        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean | OpId::Nurbs | OpId::PnSmooth => 0,
         OpId::Skin if is_field_skin(call) => 0,
         OpId::Skin => {
             let s = n("sides");
@@ -278,6 +284,27 @@ pub(super) fn apply(
     };
     match call.def.id {
         OpId::Sdf => return fields::create(&field_ctx(), mesh, call).map(Applied::from),
+        OpId::Nurbs | OpId::PnSmooth => {
+            let surface_ctx = surfaces::SurfaceContext {
+                slots: ctx.slots,
+                surfaces: ctx.nurbs,
+                budget: ctx.budget,
+                uses_graph: ctx.uses_graph,
+            };
+            let (made, stats) = if call.def.id == OpId::Nurbs {
+                surfaces::create(&surface_ctx, mesh, call)?
+            } else {
+                surfaces::pn_smooth(&surface_ctx, mesh, call)?
+            };
+            return Ok(Applied {
+                made,
+                applied: None,
+                field: None,
+                surface: Some(stats),
+                warnings: Vec::new(),
+                replaced: call.def.id == OpId::PnSmooth,
+            });
+        }
         OpId::SdfPart => {
             return fields::place_parts(&field_ctx(), mesh, call, ctx.domain, selected)
                 .map(Applied::from)
@@ -512,7 +539,9 @@ pub(super) fn apply(
                 map.faces.into_iter().flatten().collect(),
             )
         }
-        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean => unreachable!("applied above"),
+        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean | OpId::Nurbs | OpId::PnSmooth => {
+            unreachable!("applied above")
+        }
         OpId::CreateEdge
         | OpId::SplitEdge
         | OpId::CreateFace
@@ -525,6 +554,7 @@ pub(super) fn apply(
         made,
         applied,
         field: None,
+        surface: None,
         warnings: Vec::new(),
         replaced: false,
     })

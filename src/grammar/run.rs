@@ -15,6 +15,7 @@ use super::fields::{FieldStats, Input};
 use super::intersect::Guard;
 use super::merge::Merger;
 use super::operators;
+use super::surfaces::SurfaceStats;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
@@ -131,6 +132,8 @@ pub struct StepStats {
     pub elapsed: Duration,
     /// What meshing fields did (steps that mesh one).
     pub field: Option<Box<FieldStats>>,
+    /// What tessellating surfaces or PN smoothing did.
+    pub surface: Option<Box<SurfaceStats>>,
 }
 
 #[derive(Debug)]
@@ -360,6 +363,7 @@ struct Tally {
     cancelled: usize,
     cancelled_compounds: usize,
     field: Option<FieldStats>,
+    surface: Option<SurfaceStats>,
 }
 
 impl Runner<'_> {
@@ -528,8 +532,15 @@ impl Runner<'_> {
                 created: CreatedCounts::default(),
                 elapsed: Duration::ZERO,
                 field: None,
+                surface: None,
             })
         });
+        if let Some(s) = &tally.surface {
+            stats
+                .surface
+                .get_or_insert_with(|| Box::new(SurfaceStats::default()))
+                .add(s);
+        }
         if let Some(f) = &tally.field {
             stats
                 .field
@@ -616,6 +627,7 @@ impl Runner<'_> {
             resources: &self.program.resources,
             inputs: &self.inputs,
             sdf: &self.program.sdf,
+            nurbs: &self.program.nurbs,
             domain: step.domain,
             max_cells: self.max_cells,
             mesh_progress: self.mesh_progress,
@@ -635,6 +647,9 @@ impl Runner<'_> {
             // A field evaluation is work like an expression's.
             self.evaluations = self.evaluations.saturating_add(field.field_evaluations);
             tally.field = Some(field.clone());
+        }
+        if let Some(surface) = &done.surface {
+            tally.surface = Some(surface.clone());
         }
         for w in &done.warnings {
             if !self.warnings.contains(w) {

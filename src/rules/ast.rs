@@ -46,6 +46,9 @@ pub struct RuleFile {
     /// the `sdf` operators' `tree` and by other trees' children.
     #[serde(default)]
     pub sdf: Named<Spanned<Args>>,
+    /// Parametric surfaces (`[nurbs.NAME]`), used by the `nurbs` operator.
+    #[serde(default)]
+    pub nurbs: Named<Spanned<Args>>,
     /// Default policy of G³ commands about coinciding primitives.
     #[serde(default)]
     pub policy: Option<Spanned<PolicyName>>,

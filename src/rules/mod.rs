@@ -11,6 +11,7 @@ pub mod compile;
 pub mod diagnostic;
 pub mod expr;
 pub mod lint;
+pub mod nurbs_def;
 pub mod operators;
 pub mod program;
 pub mod random;

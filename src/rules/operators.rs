@@ -50,6 +50,8 @@ pub enum OpId {
     Sdf,
     SdfPart,
     SdfBoolean,
+    Nurbs,
+    PnSmooth,
 }
 
 /// How an operator runs.
@@ -93,6 +95,8 @@ pub enum ArgKind {
     Tree,
     /// An axis-aligned box, `[[x, y, z], [x, y, z]]` (lowest corner first).
     Bounds,
+    /// A parametric surface: the name of a `[nurbs.NAME]` table.
+    Surface,
 }
 
 /// A parameter's value when the file gives none.
@@ -979,7 +983,97 @@ pub static OPERATORS: &[OperatorDef] = &[
         exclusive: &[("cell", "cells")],
         summary: "combine the mesh with a signed distance tree through the mesh's distance field, and re-mesh the result",
     },
+    OperatorDef {
+        id: OpId::Nurbs,
+        name: "nurbs",
+        family: Family::Create,
+        domains: &[],
+        params: &[
+            required("surface", Surface, "the name of a [nurbs.NAME] surface"),
+            param(
+                "mode",
+                Choice(&["adaptive", "interpatch", "uniform"]),
+                Default::Choice(0),
+                "tessellation: refined in rounds until every edge meets `tolerance` (\"adaptive\"), levels per Bézier patch and border (\"interpatch\"), or a regular grid (\"uniform\")",
+            ),
+            above(
+                "tolerance",
+                Scalar,
+                0.0,
+                "adaptive and interpatch: largest distance from the surface, model units (0.001)",
+            ),
+            ParamDef {
+                key: "max_level",
+                kind: Scalar,
+                default: Default::Number(12.0),
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: Some(MAX_TESSELLATION_LEVEL as f64),
+                doc: "adaptive: most halvings of an edge (12)",
+            },
+            ParamDef {
+                key: "cells",
+                kind: Pair,
+                default: Default::None,
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: None,
+                doc: "uniform: cells along u and v, [8, 8] by default",
+            },
+            param(
+                "per_patch",
+                Bool,
+                Default::Bool(true),
+                "uniform: `cells` per Bézier patch (knot span) rather than over the whole surface (true)",
+            ),
+        ],
+        exclusive: &[],
+        summary: "create: a NURBS surface, tessellated into a conforming triangle mesh",
+    },
+    OperatorDef {
+        id: OpId::PnSmooth,
+        name: "pn_smooth",
+        family: Family::WholeMesh,
+        domains: &[Face],
+        params: &[
+            ParamDef {
+                key: "level",
+                kind: Scalar,
+                default: Default::Number(3.0),
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: Some(MAX_PN_LEVEL as f64),
+                doc: "segments per input edge (3): every triangle becomes level² triangles (uniform)",
+            },
+            param(
+                "pattern",
+                Choice(&["uniform", "gl"]),
+                Default::Choice(0),
+                "\"uniform\" (a regular barycentric grid) or \"gl\" (OpenGL's ring pattern: a 12-triangle cube at level 5 gives 444 triangles)",
+            ),
+            ParamDef {
+                key: "crease",
+                kind: Scalar,
+                default: Default::Number(30.0),
+                required: false,
+                min: Some(0.0),
+                above: None,
+                max: Some(180.0),
+                doc: "degrees: edges whose faces meet at a sharper angle keep split normals, so they stay sharp without opening the mesh (30)",
+            },
+        ],
+        exclusive: &[],
+        summary: "replace the mesh by PN (curved) triangles: cubic geometry from its vertex normals, closed input stays closed",
+    },
 ];
+
+/// Most halvings of an edge adaptive tessellation accepts.
+pub const MAX_TESSELLATION_LEVEL: u32 = 24;
+/// Largest PN level (a triangle becomes level² triangles).
+pub const MAX_PN_LEVEL: u32 = 64;
 
 const CELL_SKIN: ParamDef = above(
     "cell",

@@ -51,6 +51,9 @@ pub struct Program {
     /// Every signed distance tree, referenced by node index from
     /// [`Arg::Tree`].
     pub sdf: SdfForest,
+    /// Every `[nurbs.NAME]` surface, in file order, referenced by index
+    /// from [`Arg::Surface`].
+    pub nurbs: Vec<crate::rules::nurbs_def::SurfaceDef>,
 }
 
 /// A file a rule file refers to.
@@ -347,6 +350,8 @@ pub enum Arg {
     Tree(usize),
     /// A box: lowest corner, highest corner.
     Bounds(Box<[Vector; 2]>),
+    /// The index of a surface in [`Program::nurbs`].
+    Surface(usize),
 }
 
 impl Call {
@@ -421,6 +426,14 @@ impl Call {
             Arg::Tree(i) => Some(*i),
             Arg::Absent => None,
             other => panic!("`{}.{key}` is {other:?}, not a tree", self.def.name),
+        }
+    }
+
+    pub fn surface(&self, key: &str) -> Option<usize> {
+        match self.arg(key) {
+            Arg::Surface(i) => Some(*i),
+            Arg::Absent => None,
+            other => panic!("`{}.{key}` is {other:?}, not a surface", self.def.name),
         }
     }
 

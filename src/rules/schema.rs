@@ -113,6 +113,7 @@ fn parameter(p: &ParamDef) -> Value {
         ArgKind::Path => json!({ "type": "string", "minLength": 1 }),
         ArgKind::NodeCondition => r("condition"),
         ArgKind::Tree => r("sdf_tree"),
+        ArgKind::Surface => json!({ "type": "string", "minLength": 1 }),
         ArgKind::Bounds => {
             json!({ "type": "array", "items": r("vector3"), "minItems": 2, "maxItems": 2 })
         }
@@ -330,6 +331,29 @@ pub fn schema() -> Value {
         json!({ "type": "array", "items": r("value"), "minItems": 3, "maxItems": 3 }),
     );
     definitions.insert(
+        "nurbs_surface".into(),
+        json!({
+            "type": "object",
+            "description": "a NURBS surface (thesis 002 §1.2): degree, net size, control points (a list, or [x, y, z] expressions over the net indices i and j), weights, knots",
+            "required": ["degree", "size", "points"],
+            "additionalProperties": false,
+            "properties": {
+                "degree": { "anyOf": [r("value"), r("pair")], "description": "degree along u and v, or one for both" },
+                "size": describe(r("pair"), "control points along u and v"),
+                "points": { "anyOf": [
+                    { "type": "array", "items": r("vector3"), "minItems": 4 },
+                    { "type": "array", "items": r("value"), "minItems": 3, "maxItems": 3 } ],
+                    "description": "control points row-major (i along u), or one [x, y, z] of expressions over i and j" },
+                "weights": { "anyOf": [ r("value"), { "type": "array", "items": r("value") } ],
+                    "description": "weights (default 1): a list, or an expression over i and j" },
+                "knots_u": { "anyOf": [ { "const": "clamped_uniform" }, { "type": "array", "items": r("value") } ],
+                    "description": "knots along u (\"clamped_uniform\")" },
+                "knots_v": { "anyOf": [ { "const": "clamped_uniform" }, { "type": "array", "items": r("value") } ],
+                    "description": "knots along v (\"clamped_uniform\")" }
+            }
+        }),
+    );
+    definitions.insert(
         "sdf_tree".into(),
         json!({ "anyOf": [ { "type": "string", "minLength": 1 }, r("sdf_node") ],
                 "description": "the name of an [sdf.NAME] tree, or a tree table with a `kind`" }),
@@ -511,6 +535,13 @@ pub fn schema() -> Value {
                 "type": "object",
                 "description": "signed distance trees, used by the sdf operators' `tree` and by other trees' children",
                 "additionalProperties": r("sdf_node") }),
+            ),
+            (
+                "nurbs",
+                json!({
+                "type": "object",
+                "description": "parametric surfaces, used by the nurbs operator's `surface`",
+                "additionalProperties": r("nurbs_surface") }),
             ),
             (
                 "policy",

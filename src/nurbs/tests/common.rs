@@ -135,8 +135,7 @@ pub fn bottle() -> NurbsSurface {
         }
     }
     let kv =
-        crate::nurbs::knots::clamped_uniform(3, 6, crate::nurbs::error::Field::DegreeV)
-            .unwrap();
+        crate::nurbs::knots::clamped_uniform(3, 6, crate::nurbs::error::Field::DegreeV).unwrap();
     NurbsSurface::new([2, 3], [9, 6], &pts, Some(&ws), k, kv).unwrap()
 }
 
@@ -152,15 +151,10 @@ pub fn periodic_tube() -> NurbsSurface {
             pts.push([r * libm::cos(a), r * libm::sin(a), j as f64]);
         }
     }
-    let ku = crate::nurbs::knots::periodic_uniform(
-        p,
-        n + p,
-        crate::nurbs::error::Field::DegreeU,
-    )
-    .unwrap();
+    let ku = crate::nurbs::knots::periodic_uniform(p, n + p, crate::nurbs::error::Field::DegreeU)
+        .unwrap();
     let kv =
-        crate::nurbs::knots::clamped_uniform(3, 5, crate::nurbs::error::Field::DegreeV)
-            .unwrap();
+        crate::nurbs::knots::clamped_uniform(3, 5, crate::nurbs::error::Field::DegreeV).unwrap();
     NurbsSurface::new([3, 3], [n + p, 5], &pts, None, ku, kv).unwrap()
 }
 

@@ -2,9 +2,9 @@
 
 use super::common;
 
-use glam::DVec3;
 use crate::nurbs::error::{Dir, Field, NurbsError};
 use crate::nurbs::surface::{NurbsSurface, Topology};
+use glam::DVec3;
 
 /// Deterministic pseudo-random parameters (SplitMix64).
 fn randoms(n: usize, seed: u64) -> Vec<f64> {

@@ -3,8 +3,8 @@
 
 use super::common;
 
-use glam::DVec3;
 use crate::nurbs::curve::NurbsCurve;
+use glam::DVec3;
 
 /// u, v, S, Su, Sv, Suu, Suv, Svv, unit normal (geomdl `derivatives(order=2)`, `operations.normal`).
 const PEER: [[f64; 23]; 7] = [

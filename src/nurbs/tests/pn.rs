@@ -1,9 +1,9 @@
 //! PN triangles: geometry, watertightness, crease handling, counts, canonical output.
 
-use glam::DVec3;
 use crate::nurbs::pn::{
     gl_triangle_count, pn_triangles, Creases, Levels, NormalMode, Pattern, PnError, PnOptions,
 };
+use glam::DVec3;
 
 const CAP: usize = 10_000_000;
 

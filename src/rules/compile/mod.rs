@@ -20,8 +20,10 @@ use super::program::{
 };
 use super::random::stream_key;
 
+mod nurbs;
 mod sdf;
 use super::spanned::{SourceFormat, Spanned};
+pub use nurbs::SURFACE_KEYS;
 pub use sdf::{tree_limits, MAX_TREE_DEPTH};
 
 /// A `--set name=value` override from the command line.
@@ -187,6 +189,8 @@ struct Compiler<'a> {
     sdf_defs: &'a ast::Named<Spanned<ast::Args>>,
     /// Trees compiled so far.
     trees: std::cell::RefCell<sdf::TreeState>,
+    /// The file's `[nurbs.NAME]` tables.
+    nurbs_defs: &'a ast::Named<Spanned<ast::Args>>,
 }
 
 impl<'a> Compiler<'a> {
@@ -478,6 +482,7 @@ pub fn compile(
         base_dir,
         sdf_defs: &ast.sdf,
         trees: std::default::Default::default(),
+        nurbs_defs: &ast.nurbs,
     };
 
     // Slots are assigned in name order: TOML does not keep table order, and
@@ -551,6 +556,7 @@ pub fn compile(
                     base_dir,
                     sdf_defs: &no_trees,
                     trees: std::default::Default::default(),
+                    nurbs_defs: &no_trees,
                 };
                 let expr = c.param_expr(&o.value, Some(0..o.value.len()))?;
                 (ParamKind::Expr(expr), None)
@@ -567,6 +573,7 @@ pub fn compile(
     }
     let params = order_params(&compiler, &declared, params)?;
     compiler.compile_named_trees()?;
+    let surfaces = compiler.compile_surfaces()?;
 
     let default_tolerance = match &ast.tolerance {
         Some(t) => check_tolerance(&compiler, t)?,
@@ -670,6 +677,7 @@ pub fn compile(
     }
 
     compiler.validate_trees(&params)?;
+    compiler.validate_surfaces(&surfaces, &params)?;
 
     let mut hash_input = file.text.clone();
     for o in overrides {
@@ -691,6 +699,7 @@ pub fn compile(
         may_cancel,
         resources: compiler.resources.take(),
         sdf: compiler.trees.take().forest,
+        nurbs: surfaces,
     })
 }
 
@@ -1805,6 +1814,8 @@ fn check_value(
         (ArgKind::NodeCondition, ArgValue::Text(_)) => {}
         (ArgKind::NodeCondition, _) => return Err(wrong("a condition string")),
         (ArgKind::Tree, ArgValue::Text(_) | ArgValue::Name(_) | ArgValue::Table(_)) => {}
+        (ArgKind::Surface, ArgValue::Text(_) | ArgValue::Name(_)) => {}
+        (ArgKind::Surface, _) => return Err(wrong("the name of a [nurbs.NAME] surface")),
         (ArgKind::Tree, _) => {
             return Err(wrong(
                 "the name of an [sdf.NAME] tree, or a tree table such as { kind = \"sphere\", radius = 1 }",
@@ -2063,6 +2074,7 @@ fn compile_params(
                 }))
             }
             (ArgKind::Tree, Some(v)) => Arg::Tree(c.tree_reference(v, owner)?),
+            (ArgKind::Surface, Some(v)) => Arg::Surface(c.surface_reference(v)?),
             (ArgKind::Bounds, Some(v)) => match &v.value {
                 ArgValue::List(corners) => {
                     let corner = |k: usize| -> Result<Vector, RuleError> {

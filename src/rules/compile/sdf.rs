@@ -389,7 +389,7 @@ impl Compiler<'_> {
 /// Parameter values for checking trees before the run: expressions as
 /// written, uniform and integer ranges at their centre, normals at their
 /// mean, the first choice, clamped. `None` if one is not finite.
-fn nominal_slots(params: &[Param], count: usize) -> Option<Vec<f64>> {
+pub(super) fn nominal_slots(params: &[Param], count: usize) -> Option<Vec<f64>> {
     let mut slots = vec![0.0; count];
     for p in params {
         let e = |x: &crate::rules::expr::Expr| x.eval(&slots);

@@ -132,6 +132,8 @@ enum Context {
     Primitive(Domain),
     /// A condition over primitives of this kind.
     Condition(Domain),
+    /// A `[nurbs.NAME]` value: parameters and the net indices `i`, `j`.
+    Generator,
 }
 
 /// An expression string in the file.
@@ -259,6 +261,9 @@ impl<'a> Linter<'a> {
         for (_, table) in &self.ast.sdf.0 {
             self.tree_table(&table.value, &mut out);
         }
+        for (_, table) in &self.ast.nurbs.0 {
+            self.surface_table(&table.value, &mut out);
+        }
         for step in steps {
             let domain = match (&step.on, &step.op, &step.compound) {
                 (Some(on), _, _) => domain_of(on.value),
@@ -339,6 +344,32 @@ impl<'a> Linter<'a> {
                             });
                         }
                     }
+                }
+            }
+        }
+    }
+
+    /// The expression sites of a `[nurbs.NAME]` table: every string in it
+    /// but the knot shorthand.
+    fn surface_table(&self, table: &'a ast::Args, out: &mut Vec<Site<'a>>) {
+        fn strings<'v>(v: &'v Spanned<ArgValue>, out: &mut Vec<(&'v Spanned<ArgValue>, &'v str)>) {
+            match &v.value {
+                ArgValue::Text(t) => out.push((v, t)),
+                ArgValue::List(items) => items.iter().for_each(|i| strings(i, out)),
+                _ => {}
+            }
+        }
+        for (_, value) in &table.0 {
+            let mut found = Vec::new();
+            strings(value, &mut found);
+            for (v, text) in found {
+                if text != "clamped_uniform" {
+                    out.push(Site {
+                        text,
+                        span: self.content_span(v, text),
+                        context: Context::Generator,
+                        key: "nurbs",
+                    });
                 }
             }
         }
@@ -442,7 +473,7 @@ impl<'a> Linter<'a> {
                     self.tree(value, out);
                     continue;
                 }
-                ArgKind::Bool | ArgKind::Choice(_) | ArgKind::Path => continue,
+                ArgKind::Bool | ArgKind::Choice(_) | ArgKind::Path | ArgKind::Surface => continue,
             };
             let items: Vec<&'a Spanned<ArgValue>> = match &value.value {
                 ArgValue::List(items) => items
@@ -478,9 +509,16 @@ impl<'a> Linter<'a> {
         let base = self.params.len() as u32;
         let domain = match site.context {
             Context::Primitive(d) | Context::Condition(d) => Some(d),
-            Context::Param(_) | Context::Operator => None,
+            Context::Param(_) | Context::Operator | Context::Generator => None,
         };
+        let generator = matches!(site.context, Context::Generator);
         let resolver = |name: &str| -> Option<u32> {
+            if let Some(k) = crate::rules::nurbs_def::GENERATOR_NAMES
+                .iter()
+                .position(|n| generator && *n == name)
+            {
+                return Some(base + k as u32);
+            }
             if let Ok(slot) = self.params.binary_search_by(|p| p.as_str().cmp(name)) {
                 used.borrow_mut().insert(slot);
                 return Some(slot as u32);
@@ -506,6 +544,7 @@ impl<'a> Linter<'a> {
                 });
                 let what = match site.context {
                     Context::Param(_) | Context::Operator => "no parameter",
+                    Context::Generator => "no parameter (nor `i`, `j`)",
                     Context::Primitive(_) | Context::Condition(_) => {
                         "no parameter or element property"
                     }

@@ -1,0 +1,244 @@
+//! Parametric surfaces in the engine (thesis 002, issue 15): `nurbs`
+//! builds a `[nurbs.NAME]` surface with the variant's parameters,
+//! tessellates it (uniform, inter-patch or fully adaptive) and appends the
+//! triangles; `pn_smooth` replaces the model by PN triangles (Vlachos et
+//! al.) over its crease-split vertex normals. Both check the primitive
+//! budget inside the library, before the output is allocated.
+
+use glam::DVec3;
+
+use super::error::StepError;
+use crate::geom::normals::corner_normals;
+use crate::geom::sink::{Begin, MeshSink};
+use crate::kernel::build::KernelBuilder;
+use crate::kernel::ops::Selection;
+use crate::kernel::Mesh;
+use crate::nurbs::error::Dir;
+use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
+use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError};
+use crate::rules::nurbs_def::SurfaceDef;
+use crate::rules::program::Call;
+
+/// What the parametric operators need of the run.
+pub(super) struct SurfaceContext<'a> {
+    pub slots: &'a [f64],
+    pub surfaces: &'a [SurfaceDef],
+    /// Primitives the model may still grow by.
+    pub budget: u64,
+    /// The program uses G³ commands (a new model gets the graph layers).
+    pub uses_graph: bool,
+}
+
+/// What a tessellation or PN smoothing made, for the stats.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfaceStats {
+    /// Surfaces tessellated, or meshes smoothed.
+    pub runs: usize,
+    pub triangles: u64,
+    pub vertices: u64,
+    /// Largest distance between the surface and the mesh, sampled at every
+    /// triangle centroid and edge midpoint (tessellation).
+    pub max_deviation: f64,
+    /// Adaptive: highest edge level reached, and refinement rounds.
+    pub max_level: u32,
+    pub rounds: u32,
+    /// Bézier patches of the surface (knot spans u × v).
+    pub patches: usize,
+    /// PN: the level used.
+    pub pn_level: Option<u32>,
+}
+
+impl SurfaceStats {
+    pub fn add(&mut self, o: &SurfaceStats) {
+        self.runs += o.runs;
+        self.triangles += o.triangles;
+        self.vertices += o.vertices;
+        self.max_deviation = self.max_deviation.max(o.max_deviation);
+        self.max_level = self.max_level.max(o.max_level);
+        self.rounds = self.rounds.max(o.rounds);
+        self.patches += o.patches;
+        self.pn_level = self.pn_level.max(o.pn_level);
+    }
+}
+
+/// Most triangles the budget allows (a triangle brings one face, about
+/// one and a half edges and half a vertex).
+fn triangle_cap(budget: u64) -> usize {
+    usize::try_from(budget / 3).unwrap_or(usize::MAX)
+}
+
+/// `nurbs`: the surface tessellated, appended.
+pub(super) fn create(
+    ctx: &SurfaceContext,
+    mesh: &mut Mesh,
+    call: &Call,
+) -> Result<(Selection, SurfaceStats), StepError> {
+    let def = &ctx.surfaces[call.surface("surface").expect("required")];
+    let surface = def.build(ctx.slots).map_err(|e| StepError::Surface {
+        surface: def.name.clone(),
+        message: format!("{}: {}", e.key, e.message),
+    })?;
+    let value = |key: &str| call.scalar(key).map(|e| e.eval(ctx.slots));
+    let tolerance = value("tolerance").unwrap_or(1e-3);
+    let mode = match call.choice("mode") {
+        Some("uniform") => {
+            let cells = match call.pair("cells") {
+                Some([u, v]) => [u.eval(ctx.slots), v.eval(ctx.slots)],
+                None => [8.0, 8.0],
+            };
+            let count = |x: f64| -> Result<usize, StepError> {
+                if !(x.is_finite() && x >= 1.0) {
+                    return Err(StepError::Option {
+                        key: "cells",
+                        message: format!("must be at least 1, got {x}"),
+                    });
+                }
+                Ok(libm::round(x) as usize)
+            };
+            Mode::Uniform {
+                cells: [count(cells[0])?, count(cells[1])?],
+                per_patch: call.flag("per_patch") != Some(false),
+                diagonal: Diagonal::Fixed,
+            }
+        }
+        Some("interpatch") => Mode::InterPatch { tolerance },
+        _ => {
+            let mut options = AdaptiveOptions::sagitta(tolerance);
+            if let Some(level) = value("max_level") {
+                options.max_level = libm::round(level).clamp(1.0, 64.0) as u32;
+            }
+            Mode::Adaptive(options)
+        }
+    };
+    let cap = triangle_cap(ctx.budget);
+    let t = tessellate(&surface, &mode, cap).map_err(|e| match e {
+        TessError::TriangleLimit { needed, .. } => StepError::FieldTooLarge {
+            what: format!("tessellating `{}`", def.name),
+            coming: u64::try_from(needed.saturating_mul(3)).unwrap_or(u64::MAX),
+            budget: ctx.budget,
+        },
+        other => StepError::Surface {
+            surface: def.name.clone(),
+            message: other.to_string(),
+        },
+    })?;
+    let made = append_triangles(mesh, &t.mesh.positions, &t.mesh.triangles)?;
+    let stats = SurfaceStats {
+        runs: 1,
+        triangles: t.stats.triangles as u64,
+        vertices: t.stats.vertices as u64,
+        max_deviation: t.stats.max_deviation,
+        max_level: t.stats.max_level,
+        rounds: t.stats.rounds,
+        patches: [Dir::U, Dir::V]
+            .iter()
+            .map(|&d| surface.breakpoints(d).len().saturating_sub(1))
+            .product(),
+        pn_level: None,
+    };
+    Ok((made, stats))
+}
+
+/// `pn_smooth`: the model's faces (triangulated) replaced by PN triangles.
+pub(super) fn pn_smooth(
+    ctx: &SurfaceContext,
+    mesh: &mut Mesh,
+    call: &Call,
+) -> Result<(Selection, SurfaceStats), StepError> {
+    let value = |key: &str| call.scalar(key).map(|e| e.eval(ctx.slots));
+    let level = value("level").unwrap_or(3.0);
+    if !(level.is_finite() && level >= 1.0) {
+        return Err(StepError::Option {
+            key: "level",
+            message: format!("must be at least 1, got {level}"),
+        });
+    }
+    let level = libm::round(level).min(f64::from(u32::MAX)) as u32;
+    let crease = value("crease").unwrap_or(30.0);
+    let current = mesh.to_indexed();
+    let triangles = current.triangles();
+    if triangles.is_empty() {
+        return Ok((Selection::new(), SurfaceStats::default()));
+    }
+    let normals = corner_normals(&current.positions, &triangles, crease);
+    let options = PnOptions {
+        pattern: match call.choice("pattern") {
+            Some("gl") => Pattern::Gl,
+            _ => Pattern::Uniform,
+        },
+        // Edges whose corner normals differ stay straight: a crease stays
+        // a sharp edge, and the faces beside it stay flat where they were.
+        creases: Creases::Keep,
+        ..PnOptions::level(level)
+    };
+    let cap = triangle_cap(ctx.budget);
+    let pn = pn_triangles(&current.positions, &triangles, &normals, &options, cap).map_err(
+        |e| match e {
+            PnError::TriangleLimit { needed, .. } => StepError::FieldTooLarge {
+                what: "PN smoothing".into(),
+                coming: u64::try_from(needed.saturating_mul(3)).unwrap_or(u64::MAX),
+                budget: ctx.budget,
+            },
+            other => StepError::Surface {
+                surface: "the model".into(),
+                message: other.to_string(),
+            },
+        },
+    )?;
+    // Vertices split only by their shading normal weld into one point, so
+    // a closed model stays closed.
+    let mut positions = vec![[0.0; 3]; pn.points];
+    for (v, &point) in pn.point_of_vertex.iter().enumerate() {
+        positions[point as usize] = pn.mesh.positions[v];
+    }
+    let welded: Vec<[u32; 3]> = pn
+        .mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| pn.point_of_vertex[v as usize]))
+        .collect();
+    let stats = SurfaceStats {
+        runs: 1,
+        triangles: welded.len() as u64,
+        vertices: positions.len() as u64,
+        pn_level: Some(level),
+        ..SurfaceStats::default()
+    };
+    *mesh = Mesh::new();
+    if ctx.uses_graph {
+        super::graph::ensure_layers(mesh);
+    }
+    let made = append_triangles(mesh, &positions, &welded)?;
+    Ok((made, stats))
+}
+
+/// Appends a triangle mesh to the kernel mesh through its sink.
+fn append_triangles(
+    mesh: &mut Mesh,
+    positions: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+) -> Result<Selection, StepError> {
+    let mut builder = KernelBuilder::new(mesh);
+    let emit = |sink: &mut dyn MeshSink| {
+        sink.begin(&Begin {
+            vertices: positions.len(),
+            polygons: triangles.len(),
+            ..Begin::default()
+        })?;
+        for p in positions {
+            sink.vertex(DVec3::from_array(*p), &[])?;
+        }
+        for t in triangles {
+            sink.polygon(t)?;
+        }
+        sink.end()
+    };
+    emit(&mut builder).map_err(|error| {
+        builder.abort();
+        StepError::Import {
+            file: "the tessellation".into(),
+            error,
+        }
+    })?;
+    Ok(builder.finish().0)
+}

@@ -1,0 +1,287 @@
+//! Parametric surfaces: `[nurbs.NAME]` tables compiled into the program's
+//! [`SurfaceDef`]s (thesis 002 §1.2; spec §4.3). Every number takes an
+//! expression over the parameters; `points` and `weights` may instead be
+//! generators over the net indices `i` (along u) and `j` (along v). After
+//! the parameters are compiled, each surface is built once at nominal
+//! parameter values, so knot vectors of the wrong length, decreasing knots,
+//! weights ≤ 0 or a degree too high for its points are located errors
+//! before the run.
+
+use std::ops::Range;
+
+use super::{as_scalar, closest_in, Compiler};
+use crate::rules::ast::{self, ArgValue, Scalar as AstScalar};
+use crate::rules::diagnostic::RuleError;
+use crate::rules::expr::Expr;
+use crate::rules::nurbs_def::{Knots, Points, SurfaceDef, Weights, GENERATOR_NAMES};
+use crate::rules::program::{Param, Scalar};
+use crate::rules::spanned::Spanned;
+
+/// The keys a `[nurbs.NAME]` table takes.
+pub const SURFACE_KEYS: [&str; 6] = ["degree", "size", "points", "weights", "knots_u", "knots_v"];
+
+/// The knot shorthand.
+const CLAMPED_UNIFORM: &str = "clamped_uniform";
+
+impl Compiler<'_> {
+    /// Compiles every `[nurbs.NAME]` table, in file order.
+    pub(super) fn compile_surfaces(&self) -> Result<Vec<SurfaceDef>, RuleError> {
+        self.nurbs_defs
+            .0
+            .iter()
+            .map(|(name, table)| self.surface(&name.value, table))
+            .collect()
+    }
+
+    /// The index of the surface `surface = "NAME"` names.
+    pub(super) fn surface_reference(&self, value: &Spanned<ArgValue>) -> Result<usize, RuleError> {
+        let names: Vec<&str> = self
+            .nurbs_defs
+            .0
+            .iter()
+            .map(|(n, _)| n.value.as_str())
+            .collect();
+        let (ArgValue::Text(name) | ArgValue::Name(name)) = &value.value else {
+            return Err(self.error(
+                value.span.clone(),
+                format!(
+                    "invalid type: {}, expected the name of a [nurbs.NAME] surface",
+                    value.value.describe()
+                ),
+            ));
+        };
+        names.iter().position(|n| n == name).ok_or_else(|| {
+            let e = self.error(
+                value.span.clone(),
+                format!("no nurbs surface named `{name}`"),
+            );
+            match closest_in(name, &names) {
+                Some(k) => e.with_help(format!("did you mean `{}`?", names[k])),
+                None if names.is_empty() => {
+                    e.with_help("define it as a table [nurbs.NAME] with degree, size and points")
+                }
+                None => e.with_help(format!("nurbs surfaces: {}", names.join(", "))),
+            }
+        })
+    }
+
+    fn surface(&self, name: &str, table: &Spanned<ast::Args>) -> Result<SurfaceDef, RuleError> {
+        let mut values: [Option<&Spanned<ArgValue>>; 6] = [None; 6];
+        for (key, value) in &table.value.0 {
+            let Some(i) = SURFACE_KEYS.iter().position(|k| *k == key.value) else {
+                let listed: Vec<String> = SURFACE_KEYS.iter().map(|k| format!("`{k}`")).collect();
+                let e = self.error(
+                    key.span.clone(),
+                    format!(
+                        "unknown field `{}` of a nurbs surface, expected one of {}",
+                        key.value,
+                        listed.join(", ")
+                    ),
+                );
+                return Err(match closest_in(&key.value, &SURFACE_KEYS) {
+                    Some(k) => e.with_help(format!("did you mean `{}`?", SURFACE_KEYS[k])),
+                    None => e,
+                });
+            };
+            if values[i].is_some() {
+                return Err(
+                    self.error(key.span.clone(), format!("duplicate field `{}`", key.value))
+                );
+            }
+            values[i] = Some(value);
+        }
+        let required = |i: usize| {
+            values[i].ok_or_else(|| {
+                self.error(
+                    table.span.clone(),
+                    format!(
+                        "missing field `{}` of nurbs surface `{name}`",
+                        SURFACE_KEYS[i]
+                    ),
+                )
+            })
+        };
+        let degree = self.scalar_pair(required(0)?, true)?;
+        let size = self.scalar_pair(required(1)?, false)?;
+        let points = self.points(required(2)?)?;
+        let weights = values[3].map(|w| self.weights(w)).transpose()?;
+        let knots = [self.knots(values[4])?, self.knots(values[5])?];
+        Ok(SurfaceDef {
+            name: name.to_owned(),
+            location: self.location(table.span.as_ref()),
+            degree,
+            size,
+            points,
+            weights,
+            knots,
+        })
+    }
+
+    /// `[a, b]`, or (when `one_for_both`) one value for both directions.
+    fn scalar_pair(
+        &self,
+        value: &Spanned<ArgValue>,
+        one_for_both: bool,
+    ) -> Result<[Scalar; 2], RuleError> {
+        match &value.value {
+            ArgValue::List(items) if items.len() == 2 => {
+                Ok([self.param_scalar(&items[0])?, self.param_scalar(&items[1])?])
+            }
+            ArgValue::Number(_) | ArgValue::Text(_) if one_for_both => {
+                let one = self.param_scalar(value)?;
+                Ok([one.clone(), one])
+            }
+            other => Err(self.error(
+                value.span.clone(),
+                format!(
+                    "invalid type: {}, expected {}",
+                    other.describe(),
+                    if one_for_both {
+                        "a number or [u, v]"
+                    } else {
+                        "[u, v]"
+                    }
+                ),
+            )),
+        }
+    }
+
+    /// A number or an expression over the parameters.
+    fn param_scalar(&self, value: &Spanned<ArgValue>) -> Result<Scalar, RuleError> {
+        match &value.value {
+            ArgValue::Number(_) | ArgValue::Text(_) => self.scalar(&as_scalar(value)),
+            other => Err(self.error(
+                value.span.clone(),
+                format!(
+                    "invalid type: {}, expected a number or an expression",
+                    other.describe()
+                ),
+            )),
+        }
+    }
+
+    /// A number or an expression over the parameters and `i`, `j`.
+    fn generator(&self, value: &Spanned<ArgValue>) -> Result<Scalar, RuleError> {
+        let v = as_scalar(value);
+        match &v.value {
+            AstScalar::Number(_) => self.scalar(&v),
+            AstScalar::Expr(text) => {
+                let base = self.param_names.len() as u32;
+                let resolve = |name: &str| match GENERATOR_NAMES.iter().position(|n| *n == name) {
+                    Some(k) => Some(base + k as u32),
+                    None => self.resolve_param(name),
+                };
+                Expr::compile(text, &resolve)
+                    .map_err(|err| self.expr_error(self.content_span(&v, text), err))
+            }
+        }
+    }
+
+    fn points(&self, value: &Spanned<ArgValue>) -> Result<Points, RuleError> {
+        let ArgValue::List(items) = &value.value else {
+            return Err(self.points_shape(value.span.clone()));
+        };
+        if items.iter().all(|p| matches!(p.value, ArgValue::List(_))) && !items.is_empty() {
+            let list = items
+                .iter()
+                .map(|p| match &p.value {
+                    ArgValue::List(xyz) if xyz.len() == 3 => Ok([
+                        self.param_scalar(&xyz[0])?,
+                        self.param_scalar(&xyz[1])?,
+                        self.param_scalar(&xyz[2])?,
+                    ]),
+                    _ => Err(self.error(p.span.clone(), "a control point is [x, y, z]")),
+                })
+                .collect::<Result<_, _>>()?;
+            return Ok(Points::List(list));
+        }
+        if items.len() == 3 && items.iter().all(is_scalar) {
+            return Ok(Points::Generator(Box::new([
+                self.generator(&items[0])?,
+                self.generator(&items[1])?,
+                self.generator(&items[2])?,
+            ])));
+        }
+        Err(self.points_shape(value.span.clone()))
+    }
+
+    fn points_shape(&self, span: Option<Range<usize>>) -> RuleError {
+        self.error(span, "`points` is a list of [x, y, z] (row-major, i along u), or one [x, y, z] of expressions over i and j").with_help("for example points = [\"i\", \"j\", \"sin(i) * cos(j)\"]")
+    }
+
+    fn weights(&self, value: &Spanned<ArgValue>) -> Result<Weights, RuleError> {
+        match &value.value {
+            ArgValue::List(items) => Ok(Weights::List(
+                items
+                    .iter()
+                    .map(|w| self.param_scalar(w))
+                    .collect::<Result<_, _>>()?,
+            )),
+            _ if is_scalar(value) => Ok(Weights::Generator(self.generator(value)?)),
+            other => Err(self.error(
+                value.span.clone(),
+                format!(
+                    "invalid type: {}, expected a list of weights or an expression over i and j",
+                    other.describe()
+                ),
+            )),
+        }
+    }
+
+    fn knots(&self, value: Option<&Spanned<ArgValue>>) -> Result<Knots, RuleError> {
+        let Some(value) = value else {
+            return Ok(Knots::ClampedUniform);
+        };
+        match &value.value {
+            ArgValue::Text(t) | ArgValue::Name(t) if t == CLAMPED_UNIFORM => {
+                Ok(Knots::ClampedUniform)
+            }
+            ArgValue::List(items) => Ok(Knots::List(
+                items.iter().map(|k| self.param_scalar(k)).collect::<Result<_, _>>()?,
+            )),
+            other => Err(self
+                .error(
+                    value.span.clone(),
+                    format!(
+                        "invalid knots: {}, expected \"{CLAMPED_UNIFORM}\" or a list of numbers",
+                        other.describe()
+                    ),
+                )
+                .with_help("clamped_uniform (the default) repeats the end knots degree + 1 times and spaces the others evenly")),
+        }
+    }
+
+    /// Builds every surface with the parameters at nominal values; the
+    /// first that fails is an error at its key.
+    pub(super) fn validate_surfaces(
+        &self,
+        surfaces: &[SurfaceDef],
+        params: &[Param],
+    ) -> Result<(), RuleError> {
+        if surfaces.is_empty() {
+            return Ok(());
+        }
+        let Some(slots) = super::sdf::nominal_slots(params, self.param_names.len()) else {
+            return Ok(());
+        };
+        for (def, (_, table)) in surfaces.iter().zip(&self.nurbs_defs.0) {
+            if let Err(e) = def.build(&slots) {
+                let span = table
+                    .value
+                    .0
+                    .iter()
+                    .find(|(k, _)| k.value == e.key)
+                    .and_then(|(k, v)| v.span.clone().or(k.span.clone()))
+                    .or(table.span.clone());
+                return Err(
+                    self.error(span, format!("nurbs surface `{}`: {}", def.name, e.message))
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+fn is_scalar(v: &Spanned<ArgValue>) -> bool {
+    matches!(v.value, ArgValue::Number(_) | ArgValue::Text(_))
+}
