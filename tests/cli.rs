@@ -26,6 +26,7 @@ const OPEN_EXAMPLES: &[&str] = &[
     "flags",
     "nurbs-surface",
     "bezier-patch",
+    "vase",
 ];
 
 #[test]

@@ -164,83 +164,68 @@ fn bad_surfaces_are_located_errors_exit_2_with_no_output() {
     let cases: Vec<(String, &str, &str)> = vec![
         (
             surface(&format!("degree = 2\nsize = [3, 3]\n{NET}\nknots_u = [0, 0, 0, 1, 1]"), ""),
-            "r.toml:5:11",
+            "rules.toml:5:11",
             "knots_u: expected 6 knots",
         ),
         (
             surface(&format!("degree = 2\nsize = [3, 3]\n{NET}\nknots_v = [0, 0, 0, 1, 0.5, 1]"), ""),
-            "r.toml:5:11",
+            "rules.toml:5:11",
             "smaller than the previous knot",
         ),
         (
             surface("degree = 1\nsize = [2, 2]\npoints = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]\nweights = [1, 1, 0, 1]", ""),
-            "r.toml:5:11",
+            "rules.toml:5:11",
             "weights[2]: weight 0 must be positive",
         ),
         (
             surface(&format!("degree = 3\nsize = [3, 3]\n{NET}"), ""),
-            "r.toml:2:10",
+            "rules.toml:2:10",
             "degree 3 needs at least 4 control points",
         ),
         (
             surface("degree = 2\nsize = [3, 3]\npoints = [\"i\", \"j\", \"sqrt(i - 1)\"]", ""),
-            "r.toml:4:10",
+            "rules.toml:4:10",
             "point [0, 0]",
         ),
         (
             surface("degree = 2\nsize = [3, 3]\npoints = [[0, 0, 0]]", ""),
-            "r.toml:4:10",
+            "rules.toml:4:10",
             "needs 9 points, the list has 1",
         ),
         (
             surface(&format!("degree = 2\nsize = [3, 3]\n{NET}"), ", tolerance = 0"),
-            "r.toml:6:",
+            "rules.toml:6:",
             "tolerance",
         ),
         (
             surface(&format!("degree = 2\nsize = [3, 3]\n{NET}"), ", max_level = 99"),
-            "r.toml:6:",
+            "rules.toml:6:",
             "max_level",
         ),
         (
             surface(&format!("degree = 2\nsize = [3, 3]\n{NET}\ncolour = 1"), ""),
-            "r.toml:5:1",
+            "rules.toml:5:1",
             "unknown field `colour` of a nurbs surface",
         ),
         (
             surface("degree = 2\nsize = [3, 3]", ""),
-            "r.toml:1:1",
+            "rules.toml:1:1",
             "missing field `points`",
         ),
         (
             surface(&format!("degree = 2\nsize = [3, 3]\n{NET}"), "").replace("surface = \"s\"", "surface = \"t\""),
-            "r.toml:6:",
+            "rules.toml:6:",
             "no nurbs surface named `t`",
         ),
         (
             surface("degree = 2\nsize = [3, 3]\npoints = [\"i\", \"k\", \"0\"]", ""),
-            "r.toml:4:17",
+            "rules.toml:4:17",
             "unknown name `k`",
         ),
     ];
     let dir = temp_dir();
     for (text, location, words) in &cases {
-        std::fs::write(dir.path().join("r.toml"), text).unwrap();
-        for args in [
-            &["check", "r.toml"][..],
-            &["run", "r.toml", "-o", "out.obj"],
-        ] {
-            let o = graftal_in(dir.path(), args);
-            let err = stderr(&o);
-            assert_eq!(o.status.code(), Some(2), "{text}\n{err}");
-            assert!(
-                err.contains(location),
-                "{text}\nexpected {location} in:\n{err}"
-            );
-            assert!(err.contains(words), "{text}\nexpected {words:?} in:\n{err}");
-            assert!(!err.contains("panicked"), "{err}");
-            assert!(!dir.path().join("out.obj").exists());
-        }
+        common::assert_located_error(dir.path(), text, location, words);
     }
 }
 
@@ -281,5 +266,66 @@ fn every_example_surface_is_documented() {
         .unwrap();
     for key in graftal::rules::compile::SURFACE_KEYS {
         assert!(doc.contains(&format!("| `{key}` |")), "no row for {key}");
+    }
+}
+
+#[test]
+fn a_profile_turned_on_a_lathe_is_closed_around_and_open_at_the_rim() {
+    let s = run_stats(&["rules/vase.toml"]);
+    let mesh = &s["mesh"];
+    assert_eq!(mesh["manifold"], true);
+    assert_eq!(mesh["consistently_oriented"], true);
+    assert_eq!(mesh["components"], 1);
+    assert_eq!(
+        mesh["euler_characteristic"], 1,
+        "a disk: pole at the bottom, one rim"
+    );
+    assert_eq!(mesh["close_vertex_pairs"], 0);
+    assert!(surface_of(&s, "start")["max_deviation"].as_f64().unwrap() <= 0.002);
+    // An open tube: two rims, χ = 0; the circle is exact, so every vertex
+    // of a degree-1 profile at radius 1 lies on the cylinder.
+    let dir = temp_dir();
+    let text = "[nurbs.tube]\ndegree = 1\nprofile = [[1, 0], [1, 2]]\n[start]\nnurbs = { surface = \"tube\", tolerance = 1e-4 }\n";
+    std::fs::write(dir.path().join("t.toml"), text).unwrap();
+    let o = graftal_in(
+        dir.path(),
+        &["run", "t.toml", "-o", "t.obj", "--stats", "-"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let t = stats(&o);
+    assert_eq!(t["mesh"]["euler_characteristic"], 0);
+    assert_eq!(t["mesh"]["manifold"], true);
+    let m = common::read_mesh(&dir.path().join("t.obj"));
+    for p in &m.positions {
+        assert!((p[0].hypot(p[1]) - 1.0).abs() < 1e-12, "{p:?}");
+    }
+}
+
+#[test]
+fn bad_profiles_are_located_errors() {
+    let dir = temp_dir();
+    for (text, location, words) in [
+        (
+            "[nurbs.v]\ndegree = 1\nprofile = [[-1, 0], [1, 1]]\n[start]\nnurbs = { surface = \"v\" }\n",
+            "rules.toml:3:11",
+            "r must be finite and ≥ 0",
+        ),
+        (
+            "[nurbs.v]\ndegree = 1\npoints = [[0, 0, 0]]\nprofile = [[1, 0], [1, 1]]\n[start]\nnurbs = { surface = \"v\" }\n",
+            "rules.toml:4:11",
+            "not both",
+        ),
+        (
+            "[nurbs.v]\ndegree = 1\nprofile = [[1, 0], [1, 1]]\nknots_u = [0, 1]\n[start]\nnurbs = { surface = \"v\" }\n",
+            "rules.toml:4:11",
+            "give `knots_v` only",
+        ),
+        (
+            "[nurbs.v]\ndegree = 1\nprofile = [\"1\", \"j\"]\n[start]\nnurbs = { surface = \"v\" }\n",
+            "rules.toml:1:1",
+            "missing field `size`",
+        ),
+    ] {
+        common::assert_located_error(dir.path(), text, location, words);
     }
 }

@@ -184,23 +184,7 @@ const BAD_TREES: &[(&str, &str, &str)] = &[
 fn bad_trees_are_located_errors_exit_2_with_no_output() {
     let dir = temp_dir();
     for (text, location, words) in BAD_TREES {
-        for command in ["run", "check"] {
-            std::fs::write(dir.path().join("rules.toml"), text).unwrap();
-            let o = if command == "run" {
-                graftal_in(dir.path(), &["run", "rules.toml", "-o", "out.obj"])
-            } else {
-                graftal_in(dir.path(), &["check", "rules.toml"])
-            };
-            let err = stderr(&o);
-            assert_eq!(o.status.code(), Some(2), "{command} {text}\n{err}");
-            assert!(
-                err.contains(location),
-                "{text}\nexpected {location} in:\n{err}"
-            );
-            assert!(err.contains(words), "{text}\nexpected {words:?} in:\n{err}");
-            assert!(!err.contains("panicked"), "{err}");
-            assert!(!dir.path().join("out.obj").exists());
-        }
+        common::assert_located_error(dir.path(), text, location, words);
     }
 }
 

@@ -41,6 +41,44 @@ pub enum Points {
     /// `[x, y, z]` expressions over the parameters and `i`, `j`.
     Generator(Box<[Scalar; 3]>),
     List(Vec<[Scalar; 3]>),
+    /// A surface of revolution about +Z: the profile's `[r, z]` points
+    /// (along v) swept by the exact rational circle (along u). `size` is
+    /// then the profile's point count, `degree` its degree, `weights` its
+    /// weights.
+    Revolve(Profile),
+}
+
+/// The profile of a surface of revolution.
+#[derive(Debug, Clone)]
+pub enum Profile {
+    /// `[r, z]` expressions over the parameters and `j`.
+    Generator(Box<[Scalar; 2]>),
+    List(Vec<[Scalar; 2]>),
+}
+
+/// The quadratic rational circle in nine points (Piegl & Tiller §7.5):
+/// corners of the unit square's midpoints and corners, weights 1 and √½.
+const CIRCLE: [[f64; 2]; 9] = [
+    [1.0, 0.0],
+    [1.0, 1.0],
+    [0.0, 1.0],
+    [-1.0, 1.0],
+    [-1.0, 0.0],
+    [-1.0, -1.0],
+    [0.0, -1.0],
+    [1.0, -1.0],
+    [1.0, 0.0],
+];
+const CIRCLE_KNOTS: [f64; 12] = [
+    0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0,
+];
+
+fn circle_weight(i: usize) -> f64 {
+    if i % 2 == 1 {
+        std::f64::consts::FRAC_1_SQRT_2
+    } else {
+        1.0
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -100,17 +138,11 @@ impl SurfaceDef {
     /// The surface with the parameters at `slots` (one value per
     /// parameter, in slot order).
     pub fn build(&self, slots: &[f64]) -> Result<NurbsSurface, SurfaceError> {
-        let whole = |e: &Scalar, key: &str, min: usize, max: usize| {
-            let x = e.eval(slots);
-            let n = libm::round(x);
-            if !(x.is_finite() && (x - n).abs() < 1e-9 && n >= min as f64 && n <= max as f64) {
-                return Err(SurfaceError::new(
-                    key,
-                    format!("must be a whole number in [{min}, {max}], got {x}"),
-                ));
-            }
-            Ok(n as usize)
-        };
+        if let Points::Revolve(profile) = &self.points {
+            return self.revolve(profile, slots);
+        }
+        let whole =
+            |e: &Scalar, key: &str, min: usize, max: usize| whole(e.eval(slots), key, min, max);
         let degree = [
             whole(&self.degree[0], "degree", 1, MAX_DEGREE)?,
             whole(&self.degree[1], "degree", 1, MAX_DEGREE)?,
@@ -133,6 +165,7 @@ impl SurfaceDef {
             Points::Generator(xyz) => over_net(slots, size, |s| {
                 [xyz[0].eval(s), xyz[1].eval(s), xyz[2].eval(s)]
             }),
+            Points::Revolve(_) => unreachable!("built by revolve"),
             Points::List(list) => {
                 if list.len() != count {
                     return Err(SurfaceError::new(
@@ -194,6 +227,74 @@ impl SurfaceDef {
             knots_v,
         )?)
     }
+
+    /// A surface of revolution: the profile (along v) swept about +Z by the
+    /// exact circle (along u), closed in u, with a pole wherever the
+    /// profile touches the axis.
+    fn revolve(&self, profile: &Profile, slots: &[f64]) -> Result<NurbsSurface, SurfaceError> {
+        let whole =
+            |e: &Scalar, key: &str, min: usize, max: usize| whole(e.eval(slots), key, min, max);
+        let degree = whole(&self.degree[1], "degree", 1, MAX_DEGREE)?;
+        let rz: Vec<[f64; 2]> = match profile {
+            Profile::List(list) => list
+                .iter()
+                .map(|p| [p[0].eval(slots), p[1].eval(slots)])
+                .collect(),
+            Profile::Generator(rz) => {
+                let n = whole(&self.size[1], "size", 2, MAX_NET_POINTS / CIRCLE.len())?;
+                over_net(slots, [1, n], |s| [rz[0].eval(s), rz[1].eval(s)])
+            }
+        };
+        if let Some(k) = rz
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite() && p[0] >= 0.0))
+        {
+            return Err(SurfaceError::new(
+                "profile",
+                format!(
+                    "profile point {k} is {:?}: r must be finite and ≥ 0, z finite",
+                    rz[k]
+                ),
+            ));
+        }
+        let n = rz.len();
+        let profile_weights: Vec<f64> = match &self.weights {
+            None => vec![1.0; n],
+            Some(Weights::Generator(w)) => over_net(slots, [1, n], |s| w.eval(s)),
+            Some(Weights::List(list)) => {
+                if list.len() != n {
+                    return Err(SurfaceError::new(
+                        "weights",
+                        format!(
+                            "the profile has {n} points, the list has {} weights",
+                            list.len()
+                        ),
+                    ));
+                }
+                list.iter().map(|w| w.eval(slots)).collect()
+            }
+        };
+        let mut points = Vec::with_capacity(CIRCLE.len() * n);
+        let mut weights = Vec::with_capacity(CIRCLE.len() * n);
+        for (i, c) in CIRCLE.iter().enumerate() {
+            for (p, w) in rz.iter().zip(&profile_weights) {
+                points.push([p[0] * c[0], p[0] * c[1], p[1]]);
+                weights.push(circle_weight(i) * w);
+            }
+        }
+        let knots_v = match &self.knots[1] {
+            Knots::ClampedUniform => clamped_uniform(degree, n, Field::DegreeV)?,
+            Knots::List(list) => list.iter().map(|x| x.eval(slots)).collect(),
+        };
+        Ok(NurbsSurface::new(
+            [2, degree],
+            [CIRCLE.len(), n],
+            &points,
+            Some(&weights),
+            CIRCLE_KNOTS.to_vec(),
+            knots_v,
+        )?)
+    }
 }
 
 /// `f` at every net index, row-major, with `i` and `j` in the slots after
@@ -211,4 +312,16 @@ fn over_net<T>(slots: &[f64], size: [usize; 2], mut f: impl FnMut(&[f64]) -> T) 
         }
     }
     out
+}
+
+/// `x` as a whole number in [min, max], or the error at `key`.
+fn whole(x: f64, key: &str, min: usize, max: usize) -> Result<usize, SurfaceError> {
+    let n = libm::round(x);
+    if !(x.is_finite() && (x - n).abs() < 1e-9 && n >= min as f64 && n <= max as f64) {
+        return Err(SurfaceError::new(
+            key,
+            format!("must be a whole number in [{min}, {max}], got {x}"),
+        ));
+    }
+    Ok(n as usize)
 }

@@ -335,7 +335,7 @@ pub fn schema() -> Value {
         json!({
             "type": "object",
             "description": "a NURBS surface (thesis 002 §1.2): degree, net size, control points (a list, or [x, y, z] expressions over the net indices i and j), weights, knots",
-            "required": ["degree", "size", "points"],
+            "required": ["degree"],
             "additionalProperties": false,
             "properties": {
                 "degree": { "anyOf": [r("value"), r("pair")], "description": "degree along u and v, or one for both" },
@@ -349,7 +349,10 @@ pub fn schema() -> Value {
                 "knots_u": { "anyOf": [ { "const": "clamped_uniform" }, { "type": "array", "items": r("value") } ],
                     "description": "knots along u (\"clamped_uniform\")" },
                 "knots_v": { "anyOf": [ { "const": "clamped_uniform" }, { "type": "array", "items": r("value") } ],
-                    "description": "knots along v (\"clamped_uniform\")" }
+                    "description": "knots along v (\"clamped_uniform\")" },
+                "profile": { "type": "array", "items": { "anyOf": [ r("value"),
+                    { "type": "array", "items": r("value"), "minItems": 2, "maxItems": 2 } ] },
+                    "description": "instead of points: [r, z] points revolved about +Z (a lathe), or one [r, z] of expressions over j" }
             }
         }),
     );

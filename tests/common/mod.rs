@@ -115,3 +115,25 @@ pub fn examples() -> Vec<PathBuf> {
     assert!(files.len() >= 10, "rules/ holds the examples");
     files
 }
+
+/// Writes `text` as `dir/rules.toml` and asserts that `check` and `run`
+/// both fail with exit 2, an error at `location` containing `words`, no
+/// panic and no output file.
+pub fn assert_located_error(dir: &Path, text: &str, location: &str, words: &str) {
+    std::fs::write(dir.join("rules.toml"), text).unwrap();
+    for args in [
+        &["check", "rules.toml"][..],
+        &["run", "rules.toml", "-o", "out.obj"],
+    ] {
+        let o = graftal_in(dir, args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?} {text}\n{err}");
+        assert!(
+            err.contains(location),
+            "{text}\nexpected {location} in:\n{err}"
+        );
+        assert!(err.contains(words), "{text}\nexpected {words:?} in:\n{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!dir.join("out.obj").exists(), "no output on error");
+    }
+}

@@ -13,12 +13,14 @@ use super::{as_scalar, closest_in, Compiler};
 use crate::rules::ast::{self, ArgValue, Scalar as AstScalar};
 use crate::rules::diagnostic::RuleError;
 use crate::rules::expr::Expr;
-use crate::rules::nurbs_def::{Knots, Points, SurfaceDef, Weights, GENERATOR_NAMES};
+use crate::rules::nurbs_def::{Knots, Points, Profile, SurfaceDef, Weights, GENERATOR_NAMES};
 use crate::rules::program::{Param, Scalar};
 use crate::rules::spanned::Spanned;
 
 /// The keys a `[nurbs.NAME]` table takes.
-pub const SURFACE_KEYS: [&str; 6] = ["degree", "size", "points", "weights", "knots_u", "knots_v"];
+pub const SURFACE_KEYS: [&str; 7] = [
+    "degree", "size", "points", "weights", "knots_u", "knots_v", "profile",
+];
 
 /// The knot shorthand.
 const CLAMPED_UNIFORM: &str = "clamped_uniform";
@@ -66,7 +68,7 @@ impl Compiler<'_> {
     }
 
     fn surface(&self, name: &str, table: &Spanned<ast::Args>) -> Result<SurfaceDef, RuleError> {
-        let mut values: [Option<&Spanned<ArgValue>>; 6] = [None; 6];
+        let mut values: [Option<&Spanned<ArgValue>>; 7] = [None; 7];
         for (key, value) in &table.value.0 {
             let Some(i) = SURFACE_KEYS.iter().position(|k| *k == key.value) else {
                 let listed: Vec<String> = SURFACE_KEYS.iter().map(|k| format!("`{k}`")).collect();
@@ -101,9 +103,44 @@ impl Compiler<'_> {
                 )
             })
         };
-        let degree = self.scalar_pair(required(0)?, true)?;
-        let size = self.scalar_pair(required(1)?, false)?;
-        let points = self.points(required(2)?)?;
+        let (degree, size, points) = match (values[2], values[6]) {
+            (Some(_), Some(profile)) => {
+                return Err(self.error(
+                    profile.span.clone(),
+                    "a surface takes `points` (a control net) or `profile` (a surface of revolution), not both",
+                ))
+            }
+            (None, Some(profile)) => {
+                if let Some(k) = values[4] {
+                    return Err(self.error(
+                        k.span.clone(),
+                        "a surface of revolution has the circle's knots along u: give `knots_v` only",
+                    ));
+                }
+                let degree = self.param_scalar(required(0)?)?;
+                let profile = self.profile(profile)?;
+                let size = match (&profile, values[1]) {
+                    (Profile::Generator(_), None) => {
+                        return Err(self.error(
+                            table.span.clone(),
+                            format!("missing field `size` of nurbs surface `{name}`: the number of profile points a generator makes"),
+                        ))
+                    }
+                    (_, Some(s)) => self.param_scalar(s)?,
+                    (Profile::List(list), None) => self.number(list.len() as f64, None)?,
+                };
+                (
+                    [degree.clone(), degree],
+                    [size.clone(), size],
+                    Points::Revolve(profile),
+                )
+            }
+            _ => (
+                self.scalar_pair(required(0)?, true)?,
+                self.scalar_pair(required(1)?, false)?,
+                self.points(required(2)?)?,
+            ),
+        };
         let weights = values[3].map(|w| self.weights(w)).transpose()?;
         let knots = [self.knots(values[4])?, self.knots(values[5])?];
         Ok(SurfaceDef {
@@ -203,6 +240,35 @@ impl Compiler<'_> {
             ])));
         }
         Err(self.points_shape(value.span.clone()))
+    }
+
+    /// `profile`: a list of `[r, z]`, or one `[r, z]` of expressions over `j`.
+    fn profile(&self, value: &Spanned<ArgValue>) -> Result<Profile, RuleError> {
+        let shape = || {
+            self.error(
+                value.span.clone(),
+                "`profile` is a list of [r, z] (radius from the z axis, height), or one [r, z] of expressions over j",
+            )
+        };
+        let ArgValue::List(items) = &value.value else {
+            return Err(shape());
+        };
+        if items.len() == 2 && items.iter().all(is_scalar) {
+            return Ok(Profile::Generator(Box::new([
+                self.generator(&items[0])?,
+                self.generator(&items[1])?,
+            ])));
+        }
+        items
+            .iter()
+            .map(|p| match &p.value {
+                ArgValue::List(rz) if rz.len() == 2 => {
+                    Ok([self.param_scalar(&rz[0])?, self.param_scalar(&rz[1])?])
+                }
+                _ => Err(self.error(p.span.clone(), "a profile point is [r, z]")),
+            })
+            .collect::<Result<_, _>>()
+            .map(Profile::List)
     }
 
     fn points_shape(&self, span: Option<Range<usize>>) -> RuleError {
