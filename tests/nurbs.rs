@@ -329,3 +329,39 @@ fn bad_profiles_are_located_errors() {
         common::assert_located_error(dir.path(), text, location, words);
     }
 }
+
+#[test]
+fn nurbs_part_places_one_closed_copy_per_selected_face_scaled_by_its_size() {
+    let s = run_stats(&["rules/knobs.toml"]);
+    let knobs = surface_of(&s, "knobs");
+    let one = knobs["triangles"].as_u64().unwrap() / 8;
+    assert_eq!(
+        knobs["triangles"].as_u64().unwrap(),
+        8 * one,
+        "eight faces, eight copies"
+    );
+    assert_eq!(s["mesh"]["components"], 9, "the panel and eight knobs");
+    assert_eq!(
+        s["mesh"]["watertight"], true,
+        "each knob is closed: poles at foot and top"
+    );
+    assert_eq!(s["mesh"]["self_intersecting_face_pairs"], 0);
+    // Unit faces: the knobs are as tall as `height` (0.3) above the panel.
+    let top = s["mesh"]["bounds"][1][2].as_f64().unwrap();
+    assert!((top - 0.5).abs() < 1e-9, "{top}");
+    // Twice the face size, twice the knob.
+    let dir = temp_dir();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("rules/knobs.toml"))
+        .unwrap()
+        .replace("size = [4, 2] }", "size = [8, 4] }");
+    std::fs::write(dir.path().join("k.toml"), text).unwrap();
+    let o = graftal_in(
+        dir.path(),
+        &["run", "k.toml", "-o", "k.obj", "--stats", "-"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let big = stats(&o);
+    let top = big["mesh"]["bounds"][1][2].as_f64().unwrap();
+    assert!((top - (0.2 + 2.0 * 0.3)).abs() < 1e-9, "{top}");
+}

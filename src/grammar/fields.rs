@@ -665,7 +665,12 @@ fn append(
 
 /// Where an `sdf_part` goes on primitive `index`: the frame's axes (H, L,
 /// U) as columns scaled by the size, the origin, and the size.
-fn placement(mesh: &Mesh, domain: Domain, index: usize, relative: bool) -> (DMat3, DVec3, f64) {
+pub(super) fn placement(
+    mesh: &Mesh,
+    domain: Domain,
+    index: usize,
+    relative: bool,
+) -> (DMat3, DVec3, f64) {
     let safe = |x: f64| if x.is_finite() && x > 1e-300 { x } else { 1.0 };
     let (frame, origin, size) = match domain {
         Domain::Face => {

@@ -229,7 +229,12 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         OpId::Duplicate | OpId::Mirror => size(&sel.full()),
         OpId::MakeFace => 1,
         // Meshing a field cannot be predicted; the mesher stops at the budget.
-        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean | OpId::Nurbs | OpId::PnSmooth => 0,
+        OpId::Sdf
+        | OpId::SdfPart
+        | OpId::SdfBoolean
+        | OpId::Nurbs
+        | OpId::NurbsPart
+        | OpId::PnSmooth => 0,
         OpId::Skin if is_field_skin(call) => 0,
         OpId::Skin => {
             let s = n("sides");
@@ -284,17 +289,19 @@ pub(super) fn apply(
     };
     match call.def.id {
         OpId::Sdf => return fields::create(&field_ctx(), mesh, call).map(Applied::from),
-        OpId::Nurbs | OpId::PnSmooth => {
+        OpId::Nurbs | OpId::NurbsPart | OpId::PnSmooth => {
             let surface_ctx = surfaces::SurfaceContext {
                 slots: ctx.slots,
                 surfaces: ctx.nurbs,
                 budget: ctx.budget,
                 uses_graph: ctx.uses_graph,
             };
-            let (made, stats) = if call.def.id == OpId::Nurbs {
-                surfaces::create(&surface_ctx, mesh, call)?
-            } else {
-                surfaces::pn_smooth(&surface_ctx, mesh, call)?
+            let (made, stats) = match call.def.id {
+                OpId::Nurbs => surfaces::create(&surface_ctx, mesh, call)?,
+                OpId::NurbsPart => {
+                    surfaces::place_parts(&surface_ctx, mesh, call, ctx.domain, selected)?
+                }
+                _ => surfaces::pn_smooth(&surface_ctx, mesh, call)?,
             };
             return Ok(Applied {
                 made,
@@ -539,9 +546,12 @@ pub(super) fn apply(
                 map.faces.into_iter().flatten().collect(),
             )
         }
-        OpId::Sdf | OpId::SdfPart | OpId::SdfBoolean | OpId::Nurbs | OpId::PnSmooth => {
-            unreachable!("applied above")
-        }
+        OpId::Sdf
+        | OpId::SdfPart
+        | OpId::SdfBoolean
+        | OpId::Nurbs
+        | OpId::NurbsPart
+        | OpId::PnSmooth => unreachable!("applied above"),
         OpId::CreateEdge
         | OpId::SplitEdge
         | OpId::CreateFace

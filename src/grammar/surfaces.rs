@@ -5,17 +5,17 @@
 //! al.) over its crease-split vertex normals. Both check the primitive
 //! budget inside the library, before the output is allocated.
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 use super::error::StepError;
 use crate::geom::normals::corner_normals;
-use crate::geom::sink::{Begin, MeshSink};
+use crate::geom::sink::{Begin, MeshSink, Placed};
 use crate::kernel::build::KernelBuilder;
 use crate::kernel::ops::Selection;
-use crate::kernel::Mesh;
+use crate::kernel::{Domain, Mesh};
 use crate::nurbs::error::Dir;
 use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
-use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError};
+use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation};
 use crate::rules::nurbs_def::SurfaceDef;
 use crate::rules::program::Call;
 
@@ -67,12 +67,13 @@ fn triangle_cap(budget: u64) -> usize {
     usize::try_from(budget / 3).unwrap_or(usize::MAX)
 }
 
-/// `nurbs`: the surface tessellated, appended.
-pub(super) fn create(
+/// The step's surface tessellated as its parameters say; the stats of one
+/// tessellation.
+fn tessellate_call(
     ctx: &SurfaceContext,
-    mesh: &mut Mesh,
     call: &Call,
-) -> Result<(Selection, SurfaceStats), StepError> {
+    copies: usize,
+) -> Result<(Tessellation, SurfaceStats), StepError> {
     let def = &ctx.surfaces[call.surface("surface").expect("required")];
     let surface = def.build(ctx.slots).map_err(|e| StepError::Surface {
         surface: def.name.clone(),
@@ -93,7 +94,7 @@ pub(super) fn create(
                         message: format!("must be at least 1, got {x}"),
                     });
                 }
-                Ok(libm::round(x) as usize)
+                Ok(libm::round(x).min(1e9) as usize)
             };
             Mode::Uniform {
                 cells: [count(cells[0])?, count(cells[1])?],
@@ -110,11 +111,17 @@ pub(super) fn create(
             Mode::Adaptive(options)
         }
     };
-    let cap = triangle_cap(ctx.budget);
+    // Every copy counts against the budget.
+    let cap = triangle_cap(ctx.budget / copies.max(1) as u64);
     let t = tessellate(&surface, &mode, cap).map_err(|e| match e {
         TessError::TriangleLimit { needed, .. } => StepError::FieldTooLarge {
-            what: format!("tessellating `{}`", def.name),
-            coming: u64::try_from(needed.saturating_mul(3)).unwrap_or(u64::MAX),
+            what: if copies > 1 {
+                format!("{copies} copies of `{}`", def.name)
+            } else {
+                format!("tessellating `{}`", def.name)
+            },
+            coming: u64::try_from(needed.saturating_mul(3).saturating_mul(copies as u128))
+                .unwrap_or(u64::MAX),
             budget: ctx.budget,
         },
         other => StepError::Surface {
@@ -122,7 +129,6 @@ pub(super) fn create(
             message: other.to_string(),
         },
     })?;
-    let made = append_triangles(mesh, &t.mesh.positions, &t.mesh.triangles)?;
     let stats = SurfaceStats {
         runs: 1,
         triangles: t.stats.triangles as u64,
@@ -136,6 +142,60 @@ pub(super) fn create(
             .product(),
         pn_level: None,
     };
+    Ok((t, stats))
+}
+
+/// `nurbs`: the surface tessellated, appended.
+pub(super) fn create(
+    ctx: &SurfaceContext,
+    mesh: &mut Mesh,
+    call: &Call,
+) -> Result<(Selection, SurfaceStats), StepError> {
+    let (t, stats) = tessellate_call(ctx, call, 1)?;
+    let made = append_triangles(mesh, &t.mesh.positions, &t.mesh.triangles, None)?;
+    Ok((made, stats))
+}
+
+/// `nurbs_part`: the surface tessellated once and placed in the frame of
+/// every selected primitive (scaled by its size when `relative`).
+pub(super) fn place_parts(
+    ctx: &SurfaceContext,
+    mesh: &mut Mesh,
+    call: &Call,
+    domain: Domain,
+    selected: &[usize],
+) -> Result<(Selection, SurfaceStats), StepError> {
+    let relative = call.flag("relative") == Some(true);
+    let placements: Vec<(DMat3, DVec3, f64)> = selected
+        .iter()
+        .map(|&i| super::fields::placement(mesh, domain, i, relative))
+        .collect();
+    if placements.is_empty() {
+        return Ok((Selection::new(), SurfaceStats::default()));
+    }
+    let (t, one) = tessellate_call(ctx, call, placements.len())?;
+    let n = placements.len() as u64;
+    let stats = SurfaceStats {
+        triangles: one.triangles * n,
+        vertices: one.vertices * n,
+        // Deviation scales with the copy.
+        max_deviation: placements
+            .iter()
+            .fold(0.0f64, |m, p| m.max(one.max_deviation * p.2)),
+        ..one
+    };
+    let mut made = Selection::new();
+    for (linear, origin, _) in placements {
+        let part = append_triangles(
+            mesh,
+            &t.mesh.positions,
+            &t.mesh.triangles,
+            Some((linear, origin)),
+        )?;
+        made.verts.extend(part.verts);
+        made.edges.extend(part.edges);
+        made.faces.extend(part.faces);
+    }
     Ok((made, stats))
 }
 
@@ -208,15 +268,17 @@ pub(super) fn pn_smooth(
     if ctx.uses_graph {
         super::graph::ensure_layers(mesh);
     }
-    let made = append_triangles(mesh, &positions, &welded)?;
+    let made = append_triangles(mesh, &positions, &welded, None)?;
     Ok((made, stats))
 }
 
-/// Appends a triangle mesh to the kernel mesh through its sink.
+/// Appends a triangle mesh to the kernel mesh through its sink, mapped by
+/// `placed` = (linear, origin) when given.
 fn append_triangles(
     mesh: &mut Mesh,
     positions: &[[f64; 3]],
     triangles: &[[u32; 3]],
+    placed: Option<(DMat3, DVec3)>,
 ) -> Result<Selection, StepError> {
     let mut builder = KernelBuilder::new(mesh);
     let emit = |sink: &mut dyn MeshSink| {
@@ -233,7 +295,11 @@ fn append_triangles(
         }
         sink.end()
     };
-    emit(&mut builder).map_err(|error| {
+    let emitted = match placed {
+        Some((linear, origin)) => emit(&mut Placed::new(&mut builder, linear, origin)),
+        None => emit(&mut builder),
+    };
+    emitted.map_err(|error| {
         builder.abort();
         StepError::Import {
             file: "the tessellation".into(),

@@ -51,6 +51,7 @@ pub enum OpId {
     SdfPart,
     SdfBoolean,
     Nurbs,
+    NurbsPart,
     PnSmooth,
 }
 
@@ -988,7 +989,62 @@ pub static OPERATORS: &[OperatorDef] = &[
         name: "nurbs",
         family: Family::Create,
         domains: &[],
+        params: NURBS,
+        exclusive: &[],
+        summary: "create: a NURBS surface, tessellated into a conforming triangle mesh",
+    },
+    OperatorDef {
+        id: OpId::NurbsPart,
+        name: "nurbs_part",
+        family: Family::Kernel,
+        domains: &[Face, Vert, Edge],
+        params: NURBS_PART,
+        exclusive: &[],
+        summary: "a tessellated NURBS surface placed in the frame of every selected primitive (as sdf_part), appended",
+    },
+    OperatorDef {
+        id: OpId::PnSmooth,
+        name: "pn_smooth",
+        family: Family::WholeMesh,
+        domains: &[Face],
         params: &[
+            ParamDef {
+                key: "level",
+                kind: Scalar,
+                default: Default::Number(3.0),
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: Some(MAX_PN_LEVEL as f64),
+                doc: "segments per input edge (3): every triangle becomes level² triangles (uniform)",
+            },
+            param(
+                "pattern",
+                Choice(&["uniform", "gl"]),
+                Default::Choice(0),
+                "\"uniform\" (a regular barycentric grid) or \"gl\" (OpenGL's ring pattern: a 12-triangle cube at level 5 gives 444 triangles)",
+            ),
+            ParamDef {
+                key: "crease",
+                kind: Scalar,
+                default: Default::Number(30.0),
+                required: false,
+                min: Some(0.0),
+                above: None,
+                max: Some(180.0),
+                doc: "degrees: edges whose faces meet at a sharper angle keep split normals, so they stay sharp without opening the mesh (30)",
+            },
+        ],
+        exclusive: &[],
+        summary: "replace the mesh by PN (curved) triangles: cubic geometry from its vertex normals, closed input stays closed",
+    },
+];
+
+/// The parameters of the operators that tessellate a surface, after the
+/// operator's own (`$extra`).
+macro_rules! tessellation_params {
+    ($($extra:expr),*) => {
+        &[
             required("surface", Surface, "the name of a [nurbs.NAME] surface"),
             param(
                 "mode",
@@ -1028,47 +1084,18 @@ pub static OPERATORS: &[OperatorDef] = &[
                 Default::Bool(true),
                 "uniform: `cells` per Bézier patch (knot span) rather than over the whole surface (true)",
             ),
-        ],
-        exclusive: &[],
-        summary: "create: a NURBS surface, tessellated into a conforming triangle mesh",
-    },
-    OperatorDef {
-        id: OpId::PnSmooth,
-        name: "pn_smooth",
-        family: Family::WholeMesh,
-        domains: &[Face],
-        params: &[
-            ParamDef {
-                key: "level",
-                kind: Scalar,
-                default: Default::Number(3.0),
-                required: false,
-                min: Some(1.0),
-                above: None,
-                max: Some(MAX_PN_LEVEL as f64),
-                doc: "segments per input edge (3): every triangle becomes level² triangles (uniform)",
-            },
-            param(
-                "pattern",
-                Choice(&["uniform", "gl"]),
-                Default::Choice(0),
-                "\"uniform\" (a regular barycentric grid) or \"gl\" (OpenGL's ring pattern: a 12-triangle cube at level 5 gives 444 triangles)",
-            ),
-            ParamDef {
-                key: "crease",
-                kind: Scalar,
-                default: Default::Number(30.0),
-                required: false,
-                min: Some(0.0),
-                above: None,
-                max: Some(180.0),
-                doc: "degrees: edges whose faces meet at a sharper angle keep split normals, so they stay sharp without opening the mesh (30)",
-            },
-        ],
-        exclusive: &[],
-        summary: "replace the mesh by PN (curved) triangles: cubic geometry from its vertex normals, closed input stays closed",
-    },
-];
+            $($extra,)*
+        ]
+    };
+}
+
+const NURBS: &[ParamDef] = tessellation_params!();
+const NURBS_PART: &[ParamDef] = tessellation_params!(param(
+    "relative",
+    Bool,
+    Default::Bool(true),
+    "scale the surface by the primitive's size: √area of a face, length of an edge, radius of a node (true)",
+));
 
 /// Most halvings of an edge adaptive tessellation accepts.
 pub const MAX_TESSELLATION_LEVEL: u32 = 24;
