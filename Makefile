@@ -3,6 +3,8 @@
 
 CARGO ?= cargo
 OUT ?= out
+# Where cargo puts binaries (respects CARGO_TARGET_DIR).
+TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 
 .PHONY: example test unit doc-test examples validate-gltf lint bench clean
@@ -29,7 +31,7 @@ examples:
 	mkdir -p $(OUT)/examples
 	for f in rules/*.toml rules/*.ron; do \
 		name=$$(basename $${f%.*}); \
-		./target/debug/graftal run $$f -o $(OUT)/examples/$$name.glb --stats $(OUT)/examples/$$name.json || exit 1; \
+		$(TARGET_DIR)/debug/graftal run $$f -o $(OUT)/examples/$$name.glb --stats $(OUT)/examples/$$name.json || exit 1; \
 	done
 
 validate-gltf: examples
