@@ -365,3 +365,27 @@ fn nurbs_part_places_one_closed_copy_per_selected_face_scaled_by_its_size() {
     let top = big["mesh"]["bounds"][1][2].as_f64().unwrap();
     assert!((top - (0.2 + 2.0 * 0.3)).abs() < 1e-9, "{top}");
 }
+
+#[test]
+fn the_thesis_edge_tests_combine_with_the_chordal_test() {
+    let dir = temp_dir();
+    let run = |extra: &str| {
+        let text = format!(
+            "[nurbs.hill]\ndegree = 3\nsize = [10, 10]\npoints = [\"i\", \"j\", \"2 * sin(0.7 * i) * cos(0.5 * j)\"]\n[start]\nnurbs = {{ surface = \"hill\", tolerance = 0.01, max_level = 6{extra} }}\n"
+        );
+        std::fs::write(dir.path().join("e.toml"), text).unwrap();
+        let o = graftal_in(dir.path(), &["run", "e.toml", "-o", "e.obj", "--stats", "-"]);
+        assert_eq!(o.status.code(), Some(0), "{extra}: {}", stderr(&o));
+        let s = stats(&o);
+        assert_eq!(s["mesh"]["manifold"], true, "{extra}");
+        assert_eq!(s["mesh"]["euler_characteristic"], 1, "{extra}: conforming");
+        let t = surface_of(&s, "start");
+        (t["triangles"].as_u64().unwrap(), t["max_deviation"].as_f64().unwrap())
+    };
+    let (alone, d) = run("");
+    assert!(d <= 0.01);
+    let (any, d_any) = run(", test = \"two_triangle\"");
+    assert!(any > alone && d_any <= 0.01, "{any} vs {alone}");
+    let (all, _) = run(", test = \"two_triangle\", combine = \"all\"");
+    assert!(all <= any, "{all} vs {any}");
+}

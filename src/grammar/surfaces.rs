@@ -16,6 +16,7 @@ use crate::kernel::{Domain, Mesh};
 use crate::nurbs::error::Dir;
 use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
 use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation};
+use crate::nurbs::tess::{Combine, EdgeTest};
 use crate::rules::nurbs_def::SurfaceDef;
 use crate::rules::program::Call;
 
@@ -107,6 +108,36 @@ fn tessellate_call(
             let mut options = AdaptiveOptions::sagitta(tolerance);
             if let Some(level) = value("max_level") {
                 options.max_level = libm::round(level).clamp(1.0, 64.0) as u32;
+            }
+            let threshold = |default: f64| value("threshold").unwrap_or(default);
+            let extra = match call.choice("test") {
+                Some("one_edge_normal") => Some(EdgeTest::OneEdgeNormal {
+                    t1: threshold(0.02),
+                }),
+                Some("one_edge_complementary") => Some(EdgeTest::OneEdgeComplementary {
+                    t1: threshold(0.02),
+                    t2: 2.0 * threshold(0.02),
+                }),
+                Some("two_triangle") => Some(EdgeTest::TwoTriangle {
+                    t3: threshold(0.02),
+                }),
+                Some("first_order_neighbour") => Some(EdgeTest::FirstOrderNeighbour {
+                    t3: threshold(0.02),
+                }),
+                Some("vector_deviation") => Some(EdgeTest::VectorDeviation {
+                    cos_max: threshold(libm::cos(2f64.to_radians())),
+                }),
+                Some("local_flat") => Some(EdgeTest::LocalFlat { t: threshold(0.05) }),
+                Some("umbrella_flat") => Some(EdgeTest::UmbrellaFlat { t: threshold(0.05) }),
+                _ => None,
+            };
+            if let Some(test) = extra {
+                options.tests.push(test);
+                // The flip rule is for the chordal test alone.
+                options.flips = false;
+            }
+            if call.choice("combine") == Some("all") {
+                options.combine = Combine::All;
             }
             Mode::Adaptive(options)
         }

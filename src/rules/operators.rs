@@ -1068,6 +1068,33 @@ macro_rules! tessellation_params {
                 max: Some(MAX_TESSELLATION_LEVEL as f64),
                 doc: "adaptive: most halvings of an edge (12)",
             },
+            param(
+                "test",
+                Choice(&[
+                    "sagitta",
+                    "one_edge_normal",
+                    "one_edge_complementary",
+                    "two_triangle",
+                    "first_order_neighbour",
+                    "vector_deviation",
+                    "local_flat",
+                    "umbrella_flat",
+                ]),
+                Default::Choice(0),
+                "adaptive: a thesis edge test (§2.2) applied besides the chordal `tolerance` (\"sagitta\": that alone)",
+            ),
+            above(
+                "threshold",
+                Scalar,
+                0.0,
+                "the test's threshold: |ΔN| for the normal tests (0.02), cos of the largest angle for vector_deviation (cos 2°), |U·N| for the flat tests (0.05)",
+            ),
+            param(
+                "combine",
+                Choice(&["any", "all"]),
+                Default::Choice(0),
+                "adaptive: split an edge when either test says so (\"any\") or only when both do (\"all\")",
+            ),
             ParamDef {
                 key: "cells",
                 kind: Pair,
