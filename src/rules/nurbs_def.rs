@@ -236,10 +236,18 @@ impl SurfaceDef {
             |e: &Scalar, key: &str, min: usize, max: usize| whole(e.eval(slots), key, min, max);
         let degree = whole(&self.degree[1], "degree", 1, MAX_DEGREE)?;
         let rz: Vec<[f64; 2]> = match profile {
-            Profile::List(list) => list
-                .iter()
-                .map(|p| [p[0].eval(slots), p[1].eval(slots)])
-                .collect(),
+            Profile::List(list) => {
+                let n = whole(&self.size[1], "size", 2, MAX_NET_POINTS / CIRCLE.len())?;
+                if n != list.len() {
+                    return Err(SurfaceError::new(
+                        "size",
+                        format!("the profile lists {} points, `size` says {n}", list.len()),
+                    ));
+                }
+                list.iter()
+                    .map(|p| [p[0].eval(slots), p[1].eval(slots)])
+                    .collect()
+            }
             Profile::Generator(rz) => {
                 let n = whole(&self.size[1], "size", 2, MAX_NET_POINTS / CIRCLE.len())?;
                 over_net(slots, [1, n], |s| [rz[0].eval(s), rz[1].eval(s)])
