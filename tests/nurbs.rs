@@ -374,13 +374,19 @@ fn the_thesis_edge_tests_combine_with_the_chordal_test() {
             "[nurbs.hill]\ndegree = 3\nsize = [10, 10]\npoints = [\"i\", \"j\", \"2 * sin(0.7 * i) * cos(0.5 * j)\"]\n[start]\nnurbs = {{ surface = \"hill\", tolerance = 0.01, max_level = 6{extra} }}\n"
         );
         std::fs::write(dir.path().join("e.toml"), text).unwrap();
-        let o = graftal_in(dir.path(), &["run", "e.toml", "-o", "e.obj", "--stats", "-"]);
+        let o = graftal_in(
+            dir.path(),
+            &["run", "e.toml", "-o", "e.obj", "--stats", "-"],
+        );
         assert_eq!(o.status.code(), Some(0), "{extra}: {}", stderr(&o));
         let s = stats(&o);
         assert_eq!(s["mesh"]["manifold"], true, "{extra}");
         assert_eq!(s["mesh"]["euler_characteristic"], 1, "{extra}: conforming");
         let t = surface_of(&s, "start");
-        (t["triangles"].as_u64().unwrap(), t["max_deviation"].as_f64().unwrap())
+        (
+            t["triangles"].as_u64().unwrap(),
+            t["max_deviation"].as_f64().unwrap(),
+        )
     };
     let (alone, d) = run("");
     assert!(d <= 0.01);
