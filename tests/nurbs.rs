@@ -395,3 +395,29 @@ fn the_thesis_edge_tests_combine_with_the_chordal_test() {
     let (all, _) = run(", test = \"two_triangle\", combine = \"all\"");
     assert!(all <= any, "{all} vs {any}");
 }
+
+#[test]
+fn nurbs_patch_replaces_quads_and_keeps_the_solid_closed() {
+    let s = run_stats(&["rules/cushions.toml"]);
+    let steps = s["steps"].as_array().unwrap();
+    let cushions = steps.iter().find(|x| x["name"] == "cushions").unwrap();
+    assert_eq!(cushions["applied"], 3);
+    assert_eq!(cushions["created_faces"], 3 * 8 * 8);
+    let mesh = &s["mesh"];
+    assert_eq!(mesh["watertight"], true);
+    assert_eq!(mesh["euler_characteristic"], 2);
+    assert_eq!(mesh["self_intersecting_face_pairs"], 0);
+    assert_eq!(mesh["close_vertex_pairs"], 0);
+    // Without lift the patch is the face itself: the slab keeps its volume.
+    let dir = temp_dir();
+    let text = "[start]\ngrid = { segments = [2, 2], size = [2, 2] }\n[[step]]\nextrude_region = { keep_original = true, offset = [0, 0, 1] }\n[[step]]\nselect = \"normal.z > 0.5\"\nnurbs_patch = { lift = 0, cells = 5 }\n";
+    std::fs::write(dir.path().join("p.toml"), text).unwrap();
+    let o = graftal_in(
+        dir.path(),
+        &["run", "p.toml", "-o", "p.obj", "--stats", "-"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let flat = stats(&o);
+    assert_eq!(flat["mesh"]["watertight"], true);
+    assert!((flat["mesh"]["volume"].as_f64().unwrap() - 4.0).abs() < 1e-12);
+}

@@ -197,6 +197,10 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             m(m(x, y), 4)
         }
         OpId::Cube => 26,
+        OpId::NurbsPatch => {
+            let n = patch_cells(call.scalar("cells").map_or(8.0, |e| ctx.scalar(e))) as u64 + 1;
+            m(sel.by_domain.faces.len() as u64, m(m(n, n), 4))
+        }
         OpId::UvSphere => m(m(n("segments"), n("rings").saturating_add(1)), 3).saturating_add(2),
         OpId::Cylinder | OpId::Cone => m(n("segments"), 6).saturating_add(2),
         OpId::Import => call
@@ -450,6 +454,16 @@ pub(super) fn apply(
             ctx.offset(call),
         )?,
         OpId::InsetFaces => inset::inset_faces(mesh, &faces_list, s("thickness"), s("depth"))?,
+        OpId::NurbsPatch => {
+            let n = patch_cells(s("cells"));
+            let lift = s("lift");
+            let mut place = |corners: [DVec3; 4], normal: DVec3, size: f64| {
+                surfaces::quad_patch_grid(corners, normal * (lift * size), n)
+            };
+            let (made, filled) = ops::grid_fill::grid_fill(mesh, &faces_list, n, &mut place)?;
+            applied = Some(filled);
+            made
+        }
         OpId::InsetRegion => inset::inset_region(mesh, &faces_list, s("thickness"), s("depth"))?,
         OpId::SplitEdges => match call.list("ratios") {
             Some(ratios) => {
@@ -573,4 +587,14 @@ pub(super) fn apply(
 /// Whether a `skin` step meshes a field (`method = "field"`).
 fn is_field_skin(call: &Call) -> bool {
     call.choice("method") == Some("field")
+}
+
+/// `nurbs_patch`'s cells per side, from the parameter (bounded by the
+/// registry; rounded, at least 1).
+fn patch_cells(x: f64) -> usize {
+    if x.is_finite() {
+        libm::round(x).clamp(1.0, 256.0) as usize
+    } else {
+        1
+    }
 }

@@ -15,6 +15,7 @@ use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, Mesh};
 use crate::nurbs::error::Dir;
 use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
+use crate::nurbs::surface::NurbsSurface;
 use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation};
 use crate::nurbs::tess::{Combine, EdgeTest};
 use crate::rules::nurbs_def::SurfaceDef;
@@ -301,6 +302,39 @@ pub(super) fn pn_smooth(
     }
     let made = append_triangles(mesh, &positions, &welded, None)?;
     Ok((made, stats))
+}
+
+/// `nurbs_patch`: the (n + 1)² grid points of the bicubic Bézier patch on
+/// a quad's corners — its 4 × 4 net the bilinear interpolation of the
+/// corners, the four inner points raised by `lift` — row-major, `i` along
+/// corner 0 → 1. The border net is the quad's edges, so the patch's border
+/// is each edge itself (Bézier curves reproduce lines).
+pub(super) fn quad_patch_grid(corners: [DVec3; 4], lift: DVec3, n: usize) -> Vec<DVec3> {
+    let bilinear = |u: f64, v: f64| {
+        corners[0] * ((1.0 - u) * (1.0 - v))
+            + corners[1] * (u * (1.0 - v))
+            + corners[2] * (u * v)
+            + corners[3] * ((1.0 - u) * v)
+    };
+    let mut net = Vec::with_capacity(16);
+    for i in 0..4 {
+        for j in 0..4 {
+            let inner = (1..3).contains(&i) && (1..3).contains(&j);
+            let p =
+                bilinear(i as f64 / 3.0, j as f64 / 3.0) + if inner { lift } else { DVec3::ZERO };
+            net.push(p.to_array());
+        }
+    }
+    let ts: Vec<f64> = (0..=n).map(|k| k as f64 / n as f64).collect();
+    match NurbsSurface::clamped([3, 3], [4, 4], &net, None).and_then(|s| s.grid(&ts, &ts, false)) {
+        Ok(g) => g.points.into_iter().map(DVec3::from_array).collect(),
+        // Only non-finite corners fail; their grid is the bilinear one.
+        Err(_) => ts
+            .iter()
+            .flat_map(|&u| ts.iter().map(move |&v| (u, v)))
+            .map(|(u, v)| bilinear(u, v))
+            .collect(),
+    }
 }
 
 /// Appends a triangle mesh to the kernel mesh through its sink, mapped by

@@ -52,6 +52,7 @@ pub enum OpId {
     SdfBoolean,
     Nurbs,
     NurbsPart,
+    NurbsPatch,
     PnSmooth,
 }
 
@@ -1001,6 +1002,32 @@ pub static OPERATORS: &[OperatorDef] = &[
         params: NURBS_PART,
         exclusive: &[],
         summary: "a tessellated NURBS surface placed in the frame of every selected primitive (as sdf_part), appended",
+    },
+    OperatorDef {
+        id: OpId::NurbsPatch,
+        name: "nurbs_patch",
+        family: Family::Kernel,
+        domains: &[Face],
+        params: &[
+            param(
+                "lift",
+                Scalar,
+                Default::Number(0.25),
+                "how far the patch's four inner control points rise along the face normal, in face sizes (√area; 0.25)",
+            ),
+            ParamDef {
+                key: "cells",
+                kind: Scalar,
+                default: Default::Number(8.0),
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: Some(256.0),
+                doc: "grid cells along each side of the quad (8)",
+            },
+        ],
+        exclusive: &[],
+        summary: "replace every selected quad by a bicubic Bézier patch on its corners (inner control points lifted along the normal), as an n × n grid; edges shared with other faces are split alike, so the mesh stays conforming",
     },
     OperatorDef {
         id: OpId::PnSmooth,

@@ -31,6 +31,7 @@ pub mod create;
 pub mod delete;
 pub mod extrude;
 pub mod faces;
+pub mod grid_fill;
 pub mod inset;
 pub mod merge;
 pub mod select;
