@@ -4,6 +4,8 @@
 //! `split_edge`, so faces beside it — selected or not — gain the same
 //! vertices and the mesh stays conforming and closed.
 
+use std::collections::BTreeMap;
+
 use glam::DVec3;
 
 use super::{OpError, Selection};
@@ -29,7 +31,7 @@ pub fn grid_fill(
     }
     // Chains of split vertices by original edge (lower vertex id first),
     // ordered from the lower vertex to the higher.
-    let mut chains: Vec<((VertId, VertId), Vec<VertId>)> = Vec::new();
+    let mut chains: BTreeMap<(VertId, VertId), Vec<VertId>> = BTreeMap::new();
     // Rings, frames and grids first: filling a quad splits its
     // neighbours' edges, and a selected neighbour is still a quad with
     // split sides.
@@ -57,11 +59,11 @@ pub fn grid_fill(
         for s in 0..4 {
             let (a, b) = (ring[s], ring[(s + 1) % 4]);
             let key = (a.min(b), a.max(b));
-            let chain = match chains.iter().position(|(k, _)| *k == key) {
-                Some(i) => chains[i].1.clone(),
+            let chain = match chains.get(&key) {
+                Some(chain) => chain.clone(),
                 None => {
                     let chain = split_evenly(mesh, key.0, key.1, n, &mut made)?;
-                    chains.push((key, chain.clone()));
+                    chains.insert(key, chain.clone());
                     chain
                 }
             };
