@@ -99,14 +99,18 @@ pub fn parse_and_compile(format: SourceFormat, body: &[u8]) -> Option<(SourceFil
 
 /// What `import` steps get: a unit cube with a wire edge, for every
 /// resource the program names (the command line would read the files).
-pub fn inputs_for(program: &Program) -> Arc<[Arc<IndexedMesh>]> {
+pub fn inputs_for(program: &Program) -> Arc<[graftal::grammar::Input]> {
     static CUBE: OnceLock<Arc<IndexedMesh>> = OnceLock::new();
     let cube = CUBE.get_or_init(|| {
         let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\nv 2 2 2\n\
 f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\nl 7 9\n";
         Arc::new(io::decode(obj, MeshFormat::Obj, Path::new("cube.obj")).expect("cube parses"))
     });
-    program.resources.iter().map(|_| Arc::clone(cube)).collect()
+    program
+        .resources
+        .iter()
+        .map(|_| graftal::grammar::Input::new(Arc::clone(cube)))
+        .collect()
 }
 
 /// The formats `info_report` chooses from by its first byte.
