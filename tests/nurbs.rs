@@ -113,43 +113,12 @@ fn pn_keeps_flat_faces_flat_below_the_crease_angle() {
 
 #[test]
 fn identical_bytes_twice_and_at_any_job_count() {
-    let dir = temp_dir();
-    let mut outputs = Vec::new();
-    for (run, jobs) in [("a", "1"), ("b", "1"), ("c", "2")] {
-        let out = dir.path().join(run);
-        std::fs::create_dir(&out).unwrap();
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_graftal"))
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .env("RAYON_NUM_THREADS", jobs)
-            .args([
-                "run",
-                "rules/nurbs-surface.toml",
-                "-o",
-                &format!("{}/s-{{tolerance}}.glb", out.display()),
-                "--grid",
-                "tolerance=0.01,0.003",
-                "-j",
-                jobs,
-            ])
-            .output()
-            .unwrap();
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&out)
-            .unwrap()
-            .map(|e| e.unwrap())
-            .filter(|e| e.file_name().to_string_lossy().ends_with(".glb"))
-            .map(|e| {
-                (
-                    e.file_name().into_string().unwrap(),
-                    std::fs::read(e.path()).unwrap(),
-                )
-            })
-            .collect();
-        files.sort();
-        assert_eq!(files.len(), 2);
-        outputs.push(files);
-    }
-    assert!(outputs.windows(2).all(|w| w[0] == w[1]));
+    let files = common::assert_same_bytes_at_any_thread_and_job_count(
+        "rules/nurbs-surface.toml",
+        "s-{tolerance}.glb",
+        &["--grid", "tolerance=0.01,0.003"],
+    );
+    assert_eq!(files, 2);
 }
 
 /// A surface table around `body` (degree 2 on a 3 × 3 net by default).

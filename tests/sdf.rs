@@ -243,46 +243,12 @@ fn too_many_cells_is_a_limit_exit_3_with_no_output() {
 
 #[test]
 fn identical_bytes_at_any_thread_count_and_job_count() {
-    let dir = temp_dir();
-    let mut outputs = Vec::new();
-    for (threads, jobs) in [("1", "1"), ("2", "1"), ("2", "2")] {
-        let out = dir.path().join(format!("t{threads}j{jobs}"));
-        std::fs::create_dir(&out).unwrap();
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_graftal"))
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .env("RAYON_NUM_THREADS", threads)
-            .args([
-                "run",
-                "rules/brick.toml",
-                "-o",
-                &format!("{}/brick-{{seed}}.glb", out.display()),
-                "--seeds",
-                "0..3",
-                "-j",
-                jobs,
-            ])
-            .output()
-            .unwrap();
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&out)
-            .unwrap()
-            .map(|e| {
-                let e = e.unwrap();
-                (
-                    e.file_name().into_string().unwrap(),
-                    std::fs::read(e.path()).unwrap(),
-                )
-            })
-            .collect();
-        files.retain(|(name, _)| name.ends_with(".glb"));
-        files.sort();
-        assert_eq!(files.len(), 3);
-        outputs.push(files);
-    }
-    assert!(
-        outputs.windows(2).all(|w| w[0] == w[1]),
-        "bytes depend on threads or jobs"
+    let files = common::assert_same_bytes_at_any_thread_and_job_count(
+        "rules/brick.toml",
+        "brick-{seed}.glb",
+        &["--seeds", "0..3"],
     );
+    assert_eq!(files, 3);
 }
 
 #[test]

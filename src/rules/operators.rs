@@ -424,16 +424,16 @@ macro_rules! meshing_params {
     };
 }
 
-const SDF: &[ParamDef] = meshing_params!(TREE);
-const SDF_PART: &[ParamDef] = meshing_params!(
-    TREE,
-    param(
-        "relative",
-        Bool,
-        Default::Bool(true),
-        "scale the tree (and the cell) by the primitive's size: √area of a face, length of an edge, radius of a node (true)",
-    )
+/// `sdf_part` and `nurbs_part`: whether the part follows the primitive's size.
+const RELATIVE: ParamDef = param(
+    "relative",
+    Bool,
+    Default::Bool(true),
+    "scale the part (and its cell or tolerance) by the primitive's size: √area of a face, length of an edge, radius of a node (true)",
 );
+
+const SDF: &[ParamDef] = meshing_params!(TREE);
+const SDF_PART: &[ParamDef] = meshing_params!(TREE, RELATIVE);
 const SDF_BOOLEAN: &[ParamDef] = meshing_params!(
     TREE,
     param(
@@ -1144,12 +1144,7 @@ macro_rules! tessellation_params {
 }
 
 const NURBS: &[ParamDef] = tessellation_params!();
-const NURBS_PART: &[ParamDef] = tessellation_params!(param(
-    "relative",
-    Bool,
-    Default::Bool(true),
-    "scale the surface by the primitive's size: √area of a face, length of an edge, radius of a node (true)",
-));
+const NURBS_PART: &[ParamDef] = tessellation_params!(RELATIVE);
 
 /// Most halvings of an edge adaptive tessellation accepts.
 pub const MAX_TESSELLATION_LEVEL: u32 = 24;

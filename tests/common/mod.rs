@@ -137,3 +137,48 @@ pub fn assert_located_error(dir: &Path, text: &str, location: &str, words: &str)
         assert!(!dir.join("out.obj").exists(), "no output on error");
     }
 }
+
+/// Runs `graftal run RULES -o DIR/TEMPLATE EXTRA…` in the project folder at
+/// 1 thread / 1 job, 2 threads / 1 job and 2 threads / 2 jobs, and asserts
+/// the `.glb` files written are the same bytes every time; returns how
+/// many there were.
+pub fn assert_same_bytes_at_any_thread_and_job_count(
+    rules: &str,
+    template: &str,
+    extra: &[&str],
+) -> usize {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut outputs = Vec::new();
+    for (threads, jobs) in [("1", "1"), ("2", "1"), ("2", "2")] {
+        let out = dir.path().join(format!("t{threads}j{jobs}"));
+        std::fs::create_dir(&out).unwrap();
+        let target = format!("{}/{template}", out.display());
+        let mut args = vec!["run", rules, "-o", &target, "-j", jobs];
+        args.extend_from_slice(extra);
+        let o = Command::new(env!("CARGO_BIN_EXE_graftal"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .env("RAYON_NUM_THREADS", threads)
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".glb"))
+            .map(|e| {
+                (
+                    e.file_name().into_string().unwrap(),
+                    std::fs::read(e.path()).unwrap(),
+                )
+            })
+            .collect();
+        files.sort();
+        outputs.push(files);
+    }
+    assert!(
+        outputs.windows(2).all(|w| w[0] == w[1]),
+        "{rules}: bytes depend on threads or jobs"
+    );
+    outputs[0].len()
+}
