@@ -918,11 +918,6 @@ fn run_variants(
         let mut warned: BTreeSet<String> = BTreeSet::new();
         for (k, produced) in receiver {
             progress.tick();
-            for w in &produced.warnings {
-                if warned.insert(w.clone()) {
-                    progress.println(&format!("warning: {w}"));
-                }
-            }
             if let (true, Some(err)) = (context.batch, &produced.entry.error) {
                 progress.println(&format!(
                     "error: variant {} (seed {}): {}",
@@ -931,6 +926,8 @@ fn run_variants(
             }
             slots[k] = Some(produced);
             while let Some(Some(p)) = slots.get(emitted) {
+                // In variant order, so stderr does not depend on -j.
+                warn_once(progress, &mut warned, &p.warnings);
                 if !emit(p) {
                     stop.store(true, Ordering::Relaxed);
                 }
@@ -939,6 +936,7 @@ fn run_variants(
         }
         // After a fail-fast stop, what ran beyond a gap is still reported.
         for p in slots[emitted..].iter().flatten() {
+            warn_once(progress, &mut warned, &p.warnings);
             if !emit(p) {
                 break;
             }
@@ -1090,6 +1088,15 @@ fn produce(context: &Context, v: &Variant) -> Produced {
 /// Lowercase hexadecimal.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Prints each warning the batch has not printed yet.
+fn warn_once(progress: &Progress, warned: &mut BTreeSet<String>, warnings: &[String]) {
+    for w in warnings {
+        if warned.insert(w.clone()) {
+            progress.println(&format!("warning: {w}"));
+        }
+    }
 }
 
 /// The blocks every meshing of this process has announced and meshed.
