@@ -10,5 +10,6 @@ pub mod grammar;
 pub mod io;
 pub mod kernel;
 pub mod nurbs;
+pub mod preview;
 pub mod rules;
 pub mod sdf;

@@ -45,7 +45,10 @@ fn every_example_runs_and_is_closed_and_valid() {
             path_str(&stats),
         ]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
-        let twin = dir.path().join(format!("{name}-twin.obj"));
+        // Same file name (an OBJ names its `.mtl`), another directory.
+        let twin_dir = dir.path().join("twin");
+        std::fs::create_dir_all(&twin_dir).unwrap();
+        let twin = twin_dir.join(format!("{name}.obj"));
         let o = graftal(&["run", path_str(&rules), "-o", path_str(&twin)]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
         assert_eq!(
@@ -88,7 +91,10 @@ fn same_seed_same_bytes_different_seed_different_bytes() {
     let dir = temp_dir();
     for ext in ["glb", "obj", "stl", "ply", "gltf"] {
         let run = |seed: &str, tag: &str| -> (Vec<u8>, Vec<u8>) {
-            let out = dir.path().join(format!("chair-{tag}.{ext}"));
+            // One file name in one directory per run: an OBJ names its `.mtl`.
+            let run_dir = dir.path().join(tag);
+            std::fs::create_dir_all(&run_dir).unwrap();
+            let out = run_dir.join(format!("chair.{ext}"));
             let stats = dir.path().join(format!("chair-{tag}-{ext}.json"));
             let o = graftal(&[
                 "run",

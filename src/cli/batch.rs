@@ -1014,17 +1014,16 @@ fn produce(context: &Context, v: &Variant) -> Produced {
             return fail(entry, kind, super::run_exit_code(e.kind), e.to_string());
         }
     };
-    let indexed = result.mesh.to_indexed();
+    let indexed = grammar::export(program, &result.mesh);
     let encoded = match super::encode_for(&indexed, v.format, &args.write, &v.output) {
         Ok(encoded) => encoded,
         Err(m) => return fail(entry, "failed", EXIT_RUNTIME, m),
     };
-    let bytes = encoded.bytes;
     let mut staged = Staged::new();
-    if let Err(e) = staged.stage(&v.output, &bytes) {
-        let m = format!("cannot write {}: {e}", v.output.display());
+    if let Err(m) = encoded.stage(&v.output, &mut staged) {
         return fail(entry, "write", EXIT_RUNTIME, m);
     }
+    let bytes = encoded.bytes;
     let mesh = &result.mesh;
     entry.bytes = Some(bytes.len() as u64);
     entry.sha256 = Some(hex(&Sha256::digest(&bytes)));

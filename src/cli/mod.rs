@@ -16,6 +16,7 @@
 mod batch;
 mod files;
 mod manifest;
+mod preview;
 mod stats;
 mod tooling;
 mod verify;
@@ -97,6 +98,8 @@ pub enum Command {
         #[command(flatten)]
         input: InputArgs,
     },
+    /// Render a shaded PNG of a mesh file or of what a rule file makes.
+    Preview(preview::PreviewArgs),
     /// Print the JSON Schema of rule files (for editors; see docs/tooling.md).
     Schema,
     /// Check rule files for likely mistakes: undefined names, unused
@@ -218,7 +221,26 @@ pub struct WriteArgs {
 /// A mesh encoded for its file, and what the format could not hold.
 pub(crate) struct Encoded {
     pub bytes: Vec<u8>,
+    /// Files that go beside it (an OBJ's `.mtl`), written with it.
+    pub companions: Vec<(PathBuf, Vec<u8>)>,
     pub dropped_wire_edges: usize,
+}
+
+impl Encoded {
+    /// Stages the mesh file and its companions (all land or none).
+    pub fn stage(&self, path: &Path, staged: &mut files::Staged) -> Result<(), String> {
+        let with = std::iter::once((path, self.bytes.as_slice())).chain(
+            self.companions
+                .iter()
+                .map(|(p, b)| (p.as_path(), b.as_slice())),
+        );
+        for (path, bytes) in with {
+            staged
+                .stage(path, bytes)
+                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        }
+        Ok(())
+    }
 }
 
 /// Encodes `mesh` for `path` as `write` says. STL keeps no wire edges: a
@@ -242,16 +264,35 @@ pub(crate) fn encode_for(
         eprintln!("warning: {message}; left out");
     }
     let is_gltf = matches!(format, io::MeshFormat::Gltf | io::MeshFormat::Glb);
-    let bytes = if write.up == Up::Y && !is_gltf {
-        let mut turned = mesh.clone();
-        turned.z_up_to_y_up();
-        io::encode(&turned, format)
+    let turned;
+    let mesh = if write.up == Up::Y && !is_gltf {
+        let mut copy = mesh.clone();
+        copy.z_up_to_y_up();
+        turned = copy;
+        &turned
     } else {
-        io::encode(mesh, format)
+        mesh
+    };
+    // An OBJ's materials go in a `.mtl` of the same stem beside it
+    // (not for standard output, which has no beside).
+    let library = (format == io::MeshFormat::Obj && path.as_os_str() != "-")
+        .then(|| io::obj::encode_mtl(mesh))
+        .flatten()
+        .map(|bytes| (path.with_extension("mtl"), bytes));
+    let bytes = match &library {
+        Some((mtl, _)) => {
+            let name = mtl
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or("materials.mtl");
+            io::obj::encode_with_library(mesh, Some(name))
+        }
+        None => io::encode(mesh, format),
     }
     .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(Encoded {
         bytes,
+        companions: library.into_iter().collect(),
         dropped_wire_edges,
     })
 }
@@ -404,9 +445,15 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let indexed = input.read_mesh(&source)?;
             let encoded =
                 encode_for(&indexed, format, &write, &output).map_err(Failure::Runtime)?;
-            files::write_atomic(&output, &encoded.bytes)
-                .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", output.display())))
+            let mut staged = files::Staged::new();
+            encoded
+                .stage(&output, &mut staged)
+                .map_err(Failure::Runtime)?;
+            staged.commit().map_err(|(path, e)| {
+                Failure::Runtime(format!("cannot write {}: {e}", path.display()))
+            })
         }
+        Command::Preview(args) => preview::run(&args),
         Command::Schema => tooling::schema(),
         Command::Lint {
             rules,

@@ -280,10 +280,21 @@ pub struct RunJson<'a> {
     seed: u64,
     params: Vec<(&'a str, f64)>,
     mesh: MeshJson,
+    /// Faces and wire edges per part, in the file's part order.
+    parts: Vec<PartJson>,
     /// Wire edges the output format could not hold (STL); absent when none.
     #[serde(skip_serializing_if = "is_zero")]
     dropped_wire_edges: usize,
     steps: Vec<StepJson>,
+}
+
+/// One part's element counts.
+#[derive(Serialize)]
+struct PartJson {
+    name: String,
+    faces: usize,
+    #[serde(skip_serializing_if = "is_zero")]
+    wire_edges: usize,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -317,6 +328,14 @@ pub fn run_stats_doc<'a>(
         seed: run.seed,
         params: run.params.iter().map(|(n, v)| (n.as_str(), *v)).collect(),
         mesh: mesh_json(report, gates),
+        parts: crate::grammar::part_counts(program, &run.mesh)
+            .into_iter()
+            .map(|c| PartJson {
+                name: c.name,
+                faces: c.faces,
+                wire_edges: c.wire_edges,
+            })
+            .collect(),
         steps: steps_json(&run.steps, timings),
     }
 }

@@ -191,7 +191,7 @@ fn regenerate(
     ))
     .expect("stats serialize");
     stats.push('\n');
-    let obj = io::encode(&result.mesh.to_indexed(), io::MeshFormat::Obj)
+    let obj = io::encode(&grammar::export(program, &result.mesh), io::MeshFormat::Obj)
         .map_err(|e| Failure::Runtime(format!("{stem}: {e}")))?;
     Ok(Fresh { stem, stats, obj })
 }
@@ -351,6 +351,35 @@ fn compare_obj(
             out.push(format!(
                 "{file}: face {}: expected vertices {e:?}, got {g:?} (0-based)",
                 k + 1
+            ));
+        }
+    }
+    // Parts and materials by name, face by face.
+    let part = |m: &IndexedMesh, k: usize| {
+        m.parts
+            .get(m.polygon_part(k) as usize)
+            .cloned()
+            .unwrap_or_default()
+    };
+    let material = |m: &IndexedMesh, k: usize| {
+        m.polygon_material(k)
+            .and_then(|i| m.materials.get(i as usize))
+            .map(|m| m.name.clone())
+            .unwrap_or_default()
+    };
+    for k in 0..ce[1].min(cg[1]) {
+        let (e, g) = (
+            (part(&expected, k), material(&expected, k)),
+            (part(&got, k), material(&got, k)),
+        );
+        if e != g {
+            out.push(format!(
+                "{file}: face {}: expected part {:?} material {:?}, got part {:?} material {:?}",
+                k + 1,
+                e.0,
+                e.1,
+                g.0,
+                g.1
             ));
         }
     }

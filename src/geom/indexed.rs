@@ -10,6 +10,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
+use super::material::Material;
 use super::polygon;
 
 /// Why an [`IndexedMesh`] cannot be written.
@@ -48,6 +49,27 @@ pub struct IndexedMesh {
     /// Named per-vertex scalar attributes, sorted by name, each with `positions.len()` values
     /// (e.g. `"radius"`). Names are ASCII letters, digits and `_`.
     pub vertex_scalars: Vec<(String, Vec<f64>)>,
+    /// Part names (glTF nodes, OBJ groups, PLY's `part`), unique; empty:
+    /// one unnamed part.
+    pub parts: Vec<String>,
+    /// Part of each polygon (index into `parts`); empty when `parts` is.
+    pub polygon_parts: Vec<u32>,
+    /// Part of each line (index into `parts`); empty when `parts` is.
+    pub line_parts: Vec<u32>,
+    /// Materials, unique by name.
+    pub materials: Vec<Material>,
+    /// Material of each polygon (index into `materials`); empty when
+    /// `materials` is (the format's default material).
+    pub polygon_materials: Vec<u32>,
+    /// Unit shading normal of each polygon corner, aligned with
+    /// `face_indices`; empty: flat shading (each polygon's own normal).
+    pub corner_normals: Vec<[f64; 3]>,
+    /// Texture coordinates of each corner, aligned with `face_indices`;
+    /// empty: none.
+    pub corner_uvs: Vec<[f64; 2]>,
+    /// Linear RGB colour of each corner (components in [0, 1]), aligned
+    /// with `face_indices`; empty: none.
+    pub corner_colors: Vec<[f64; 3]>,
 }
 
 impl IndexedMesh {
@@ -191,7 +213,198 @@ impl IndexedMesh {
                 });
             }
         }
+        self.validate_looks()
+    }
+
+    /// The part, material and per-corner checks of [`Self::validate`].
+    fn validate_looks(&self) -> Result<(), MeshError> {
+        let invalid = |message: String| Err(MeshError::Invalid { message });
+        let polygons = self.polygon_count();
+        let unique = |names: &mut dyn Iterator<Item = &str>, what: &str| {
+            let mut seen: Vec<&str> = names.collect();
+            for name in &seen {
+                if !Material::valid_name(name) {
+                    return invalid(format!(
+                        "{what} name {name:?} must be 1 to 64 ASCII letters, digits, '_', '-' or '.'"
+                    ));
+                }
+            }
+            seen.sort_unstable();
+            match seen.windows(2).find(|w| w[0] == w[1]) {
+                Some(w) => invalid(format!("{what} name {:?} is used twice", w[0])),
+                None => Ok(()),
+            }
+        };
+        unique(&mut self.parts.iter().map(String::as_str), "part")?;
+        unique(
+            &mut self.materials.iter().map(|m| m.name.as_str()),
+            "material",
+        )?;
+        let table = |values: &[u32], expect: usize, of: usize, what: &str, table: &str| {
+            if of == 0 {
+                return if values.is_empty() {
+                    Ok(())
+                } else {
+                    invalid(format!("{what} are given but there are no {table}"))
+                };
+            }
+            if values.len() != expect {
+                return invalid(format!("{} {what} for {expect} elements", values.len()));
+            }
+            match values.iter().find(|&&v| v as usize >= of) {
+                Some(v) => invalid(format!("{what}: {v} is past the {of} {table}")),
+                None => Ok(()),
+            }
+        };
+        table(
+            &self.polygon_parts,
+            polygons,
+            self.parts.len(),
+            "polygon parts",
+            "parts",
+        )?;
+        table(
+            &self.line_parts,
+            self.lines.len(),
+            self.parts.len(),
+            "line parts",
+            "parts",
+        )?;
+        table(
+            &self.polygon_materials,
+            polygons,
+            self.materials.len(),
+            "polygon materials",
+            "materials",
+        )?;
+        for m in &self.materials {
+            let unit = |x: f64| (0.0..=1.0).contains(&x);
+            let cutoff_ok = match m.alpha {
+                super::material::AlphaMode::Mask(c) => unit(c),
+                _ => true,
+            };
+            if !(m.base_color.iter().all(|&c| unit(c))
+                && m.emissive.iter().all(|&c| unit(c))
+                && unit(m.metallic)
+                && unit(m.roughness)
+                && cutoff_ok)
+            {
+                return invalid(format!(
+                    "material {:?} has a colour, factor or cutoff outside [0, 1]",
+                    m.name
+                ));
+            }
+        }
+        let corners = self.face_indices.len();
+        let per_corner = |len: usize, what: &str| {
+            if len != 0 && len != corners {
+                invalid(format!("{len} corner {what} for {corners} corners"))
+            } else {
+                Ok(())
+            }
+        };
+        per_corner(self.corner_normals.len(), "normals")?;
+        per_corner(self.corner_uvs.len(), "texture coordinates")?;
+        per_corner(self.corner_colors.len(), "colours")?;
+        if let Some(k) = self.corner_normals.iter().position(|n| {
+            let len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+            !(len2 - 1.0).abs().le(&1e-6)
+        }) {
+            return invalid(format!("corner normal {k} is not a unit vector"));
+        }
+        if let Some(k) = self
+            .corner_uvs
+            .iter()
+            .position(|t| !t.iter().all(|c| c.is_finite()))
+        {
+            return invalid(format!("corner texture coordinate {k} is not finite"));
+        }
+        if let Some(k) = self
+            .corner_colors
+            .iter()
+            .position(|c| !c.iter().all(|x| (0.0..=1.0).contains(x)))
+        {
+            return invalid(format!("corner colour {k} is outside [0, 1]"));
+        }
         Ok(())
+    }
+
+    /// Part of polygon `k` (0 when the mesh has no parts).
+    pub fn polygon_part(&self, k: usize) -> u32 {
+        self.polygon_parts.get(k).copied().unwrap_or(0)
+    }
+
+    /// Part of line `k` (0 when the mesh has no parts).
+    pub fn line_part(&self, k: usize) -> u32 {
+        self.line_parts.get(k).copied().unwrap_or(0)
+    }
+
+    /// Material of polygon `k`, if the mesh has materials.
+    pub fn polygon_material(&self, k: usize) -> Option<u32> {
+        self.polygon_materials.get(k).copied()
+    }
+
+    /// Polygons grouped by (part, material), each group in mesh order:
+    /// `(order, starts)` where group `part * materials + material` (with
+    /// `materials = self.materials.len().max(1)`) is
+    /// `order[starts[g]..starts[g + 1]]` (a counting sort: linear,
+    /// deterministic). What the writers emit part by part.
+    pub fn polygon_groups(&self) -> (Vec<u32>, Vec<usize>) {
+        let materials = self.materials.len().max(1);
+        let key = |k: usize| {
+            self.polygon_part(k) as usize * materials
+                + self.polygon_material(k).unwrap_or(0) as usize
+        };
+        let groups = self.part_count() * materials;
+        let mut start = vec![0usize; groups + 1];
+        for k in 0..self.polygon_count() {
+            start[key(k) + 1] += 1;
+        }
+        for i in 0..groups {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut order = vec![0u32; self.polygon_count()];
+        for k in 0..self.polygon_count() {
+            let g = key(k);
+            order[fill[g]] = k as u32;
+            fill[g] += 1;
+        }
+        (order, start)
+    }
+
+    /// Number of parts a writer emits: at least one when there is geometry.
+    pub fn part_count(&self) -> usize {
+        self.parts.len().max(1)
+    }
+
+    /// Settles every material whose double-sidedness is undecided: single-
+    /// sided when each edge of the polygons using it is shared by exactly
+    /// two of them in opposite directions (closed, consistently oriented
+    /// shells: back faces are never seen), double-sided otherwise.
+    pub fn decide_double_sided(&mut self) {
+        for index in 0..self.materials.len() {
+            if self.materials[index].double_sided.is_some() {
+                continue;
+            }
+            let mut edges: Vec<(u32, u32, bool)> = Vec::new();
+            for (k, poly) in self.polygons().enumerate() {
+                if self.polygon_material(k) != Some(index as u32) {
+                    continue;
+                }
+                for (i, &a) in poly.iter().enumerate() {
+                    let b = poly[(i + 1) % poly.len()];
+                    edges.push((a.min(b), a.max(b), a < b));
+                }
+            }
+            edges.sort_unstable();
+            let closed = !edges.is_empty()
+                && edges.len() % 2 == 0
+                && edges.chunks(2).all(|pair| {
+                    (pair[0].0, pair[0].1) == (pair[1].0, pair[1].1) && pair[0].2 != pair[1].2
+                });
+            self.materials[index].double_sided = Some(!closed);
+        }
     }
 
     /// Vertex scalars in name order, whatever order they are stored in.
@@ -254,17 +467,17 @@ impl IndexedMesh {
     /// rotation (handedness and winding are kept). Exact: only a swap and
     /// a negation.
     pub fn z_up_to_y_up(&mut self) {
-        for p in &mut self.positions {
-            // `+ 0.0` keeps −0 out of the files (equal geometry, equal bytes).
-            *p = [p[0], p[2], -p[1] + 0.0];
-        }
+        // `+ 0.0` keeps −0 out of the files (equal geometry, equal bytes).
+        let turn = |p: &mut [f64; 3]| *p = [p[0], p[2], -p[1] + 0.0];
+        self.positions.iter_mut().for_each(turn);
+        self.corner_normals.iter_mut().for_each(turn);
     }
 
     /// The inverse of [`Self::z_up_to_y_up`]: (x, y, z) → (x, −z, y).
     pub fn y_up_to_z_up(&mut self) {
-        for p in &mut self.positions {
-            *p = [p[0], -p[2] + 0.0, p[1]];
-        }
+        let turn = |p: &mut [f64; 3]| *p = [p[0], -p[2] + 0.0, p[1]];
+        self.positions.iter_mut().for_each(turn);
+        self.corner_normals.iter_mut().for_each(turn);
     }
 
     /// A copy with vertices at most `distance` apart merged (`distance <=
@@ -339,28 +552,55 @@ impl IndexedMesh {
                 )
             })
             .collect();
-        let mut corners: Vec<u32> = Vec::new();
-        for poly in self.polygons() {
+        out.parts = self.parts.clone();
+        out.materials = self.materials.clone();
+        // Kept corners by their index in `face_indices`, so per-corner
+        // values follow their corner.
+        let mut corners: Vec<(u32, usize)> = Vec::new();
+        for (k, poly) in self.polygons().enumerate() {
             corners.clear();
-            for &v in poly {
+            let first = self.face_starts[k] as usize;
+            for (i, &v) in poly.iter().enumerate() {
                 let w = map[v as usize];
-                if corners.last() != Some(&w) {
-                    corners.push(w);
+                if corners.last().map(|c| c.0) != Some(w) {
+                    corners.push((w, first + i));
                 }
             }
-            while corners.len() > 1 && corners.first() == corners.last() {
+            while corners.len() > 1 && corners.first().map(|c| c.0) == corners.last().map(|c| c.0) {
                 corners.pop();
             }
-            if corners.len() >= 3 {
-                out.push_polygon(&corners);
+            if corners.len() < 3 {
+                continue;
+            }
+            out.face_indices.extend(corners.iter().map(|c| c.0));
+            out.face_starts.push(out.face_indices.len() as u32);
+            let take = |from: &[[f64; 3]], to: &mut Vec<[f64; 3]>| {
+                if !from.is_empty() {
+                    to.extend(corners.iter().map(|c| from[c.1]));
+                }
+            };
+            take(&self.corner_normals, &mut out.corner_normals);
+            take(&self.corner_colors, &mut out.corner_colors);
+            if !self.corner_uvs.is_empty() {
+                out.corner_uvs
+                    .extend(corners.iter().map(|c| self.corner_uvs[c.1]));
+            }
+            if !self.polygon_parts.is_empty() {
+                out.polygon_parts.push(self.polygon_parts[k]);
+            }
+            if !self.polygon_materials.is_empty() {
+                out.polygon_materials.push(self.polygon_materials[k]);
             }
         }
-        out.lines = self
-            .lines
-            .iter()
-            .map(|l| l.map(|v| map[v as usize]))
-            .filter(|l| l[0] != l[1])
-            .collect();
+        for (k, l) in self.lines.iter().enumerate() {
+            let l = l.map(|v| map[v as usize]);
+            if l[0] != l[1] {
+                out.lines.push(l);
+                if !self.line_parts.is_empty() {
+                    out.line_parts.push(self.line_parts[k]);
+                }
+            }
+        }
         out
     }
 }

@@ -14,19 +14,25 @@
 //! - [`indexed`]: [`IndexedMesh`], the neutral polygon mesh every reader
 //!   makes and every writer takes, and [`sink`]: the [`MeshSink`] trait
 //!   every producer of geometry emits through.
+//! - [`material`]: PBR metallic-roughness materials and the sRGB
+//!   transfer functions; [`normals`]: shading normals split at creases;
+//!   [`uv`]: texture-coordinate projections.
 //! - [`union_find`] and [`names`] (the "did you mean" of every message).
 
 pub mod boxes;
 pub mod frame;
 pub mod indexed;
 pub mod interval;
+pub mod material;
 pub mod names;
 pub mod normals;
 pub mod polygon;
 pub mod predicates;
 pub mod sink;
 pub mod union_find;
+pub mod uv;
 
 pub use indexed::IndexedMesh;
+pub use material::Material;
 pub use sink::MeshSink;
 pub use union_find::UnionFind;

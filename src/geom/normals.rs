@@ -1,10 +1,13 @@
-//! Shading normals of a triangle mesh split at creases: each corner gets
+//! Shading normals of a polygon mesh split at creases: each corner gets
 //! the angle-weighted mean of the face normals around its vertex that lie
 //! within the crease angle of its own face's group, so smooth regions
 //! share one normal per vertex and edges sharper than the angle keep a
 //! normal per side.
 
 use glam::DVec3;
+
+use super::indexed::IndexedMesh;
+use super::polygon;
 
 /// Groups per vertex beyond which faces join the last group (bounds the
 /// work on hostile fans: O(groups × faces) per vertex).
@@ -18,67 +21,114 @@ pub fn corner_normals(
     triangles: &[[u32; 3]],
     crease_degrees: f64,
 ) -> Vec<[[f64; 3]; 3]> {
+    let starts: Vec<u32> = (0..=triangles.len() as u32).map(|t| 3 * t).collect();
+    let indices: Vec<u32> = triangles.iter().flatten().copied().collect();
+    let flat = smooth_polygons(positions, &starts, &indices, &|_| (0, crease_degrees));
+    flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+}
+
+/// Per corner of `mesh` (aligned with `face_indices`), unit normals
+/// smoothed within each polygon's part's crease angle (`crease_by_part[p]`
+/// in degrees; 0 keeps a part flat). Corners of different parts never
+/// share a normal: a part's border stays sharp.
+pub fn mesh_corner_normals(mesh: &IndexedMesh, crease_by_part: &[f64]) -> Vec<[f64; 3]> {
+    smooth_polygons(
+        &mesh.positions,
+        &mesh.face_starts,
+        &mesh.face_indices,
+        &|k| {
+            let part = mesh.polygon_part(k);
+            (
+                part,
+                crease_by_part.get(part as usize).copied().unwrap_or(0.0),
+            )
+        },
+    )
+}
+
+/// The angle-weighted, crease-split normals of polygons given as flat
+/// lists; `key(k)` gives polygon k's group key (faces with different keys
+/// never share a normal) and crease angle in degrees.
+fn smooth_polygons(
+    positions: &[[f64; 3]],
+    face_starts: &[u32],
+    face_indices: &[u32],
+    key: &dyn Fn(usize) -> (u32, f64),
+) -> Vec<[f64; 3]> {
     let p = |i: u32| DVec3::from_array(positions[i as usize]);
-    let face: Vec<DVec3> = triangles
-        .iter()
-        .map(|t| {
-            (p(t[1]) - p(t[0]))
-                .cross(p(t[2]) - p(t[0]))
-                .normalize_or_zero()
-        })
-        .collect();
+    let polygons = face_starts.len().saturating_sub(1);
+    let mut ring: Vec<DVec3> = Vec::new();
+    let mut face = Vec::with_capacity(polygons);
+    let mut keys = Vec::with_capacity(polygons);
+    let mut poly_of = vec![0u32; face_indices.len()];
+    for k in 0..polygons {
+        let (a, b) = (face_starts[k] as usize, face_starts[k + 1] as usize);
+        ring.clear();
+        ring.extend(face_indices[a..b].iter().map(|&i| p(i)));
+        // Triangles by their cross product (what PN smoothing was measured
+        // with); larger polygons by Newell's method.
+        face.push(match ring[..] {
+            [a, b, c] => (b - a).cross(c - a).normalize_or_zero(),
+            _ => polygon::unit_normal(&ring).unwrap_or(DVec3::ZERO),
+        });
+        let (group, crease) = key(k);
+        let cos = libm::cos(crease.clamp(0.0, 180.0).to_radians());
+        keys.push((group, cos));
+        poly_of[a..b].fill(k as u32);
+    }
     // Corners by vertex (counting sort: deterministic, linear).
     let mut start = vec![0u32; positions.len() + 1];
-    for t in triangles {
-        for &v in t {
-            start[v as usize + 1] += 1;
-        }
+    for &v in face_indices {
+        start[v as usize + 1] += 1;
     }
     for i in 0..positions.len() {
         start[i + 1] += start[i];
     }
     let mut fill = start.clone();
-    let mut corners = vec![0u32; triangles.len() * 3];
-    for (ti, t) in triangles.iter().enumerate() {
-        for (k, &v) in t.iter().enumerate() {
-            corners[fill[v as usize] as usize] = (ti * 3 + k) as u32;
-            fill[v as usize] += 1;
-        }
+    let mut corners = vec![0u32; face_indices.len()];
+    for (c, &v) in face_indices.iter().enumerate() {
+        corners[fill[v as usize] as usize] = c as u32;
+        fill[v as usize] += 1;
     }
-    let cos_crease = libm::cos(crease_degrees.clamp(0.0, 180.0).to_radians());
-    let mut out = vec![[[0.0, 0.0, 1.0]; 3]; triangles.len()];
-    let mut groups: Vec<(DVec3, DVec3)> = Vec::new(); // (seed normal, weighted sum)
+    let mut out = vec![[0.0, 0.0, 1.0]; face_indices.len()];
+    // (seed normal, group key, weighted sum)
+    let mut groups: Vec<(DVec3, u32, DVec3)> = Vec::new();
     let mut group_of: Vec<usize> = Vec::new();
     for v in 0..positions.len() {
         let around = &corners[start[v] as usize..start[v + 1] as usize];
         groups.clear();
         group_of.clear();
         for &c in around {
-            let (t, k) = (c as usize / 3, c as usize % 3);
-            let n = face[t];
+            let k = poly_of[c as usize] as usize;
+            let (n, (group, cos_crease)) = (face[k], keys[k]);
             let g = groups
                 .iter()
-                .position(|(seed, _)| n == DVec3::ZERO || seed.dot(n) >= cos_crease)
+                .position(|&(seed, key, _)| {
+                    key == group && (n == DVec3::ZERO || seed.dot(n) >= cos_crease)
+                })
                 .unwrap_or_else(|| {
                     if groups.len() < MAX_GROUPS {
-                        groups.push((n, DVec3::ZERO));
+                        groups.push((n, group, DVec3::ZERO));
                     }
                     groups.len() - 1
                 });
-            let tri = triangles[t];
+            let (first, last) = (face_starts[k] as usize, face_starts[k + 1] as usize);
+            let len = last - first;
+            let i = c as usize - first;
+            let here = p(face_indices[c as usize]);
             let (a, b) = (
-                p(tri[(k + 1) % 3]) - p(tri[k]),
-                p(tri[(k + 2) % 3]) - p(tri[k]),
+                p(face_indices[first + (i + 1) % len]) - here,
+                p(face_indices[first + (i + len - 1) % len]) - here,
             );
             let angle = libm::atan2(a.cross(b).length(), a.dot(b));
-            groups[g].1 += n * angle;
+            groups[g].2 += n * angle;
             group_of.push(g);
         }
         for (&c, &g) in around.iter().zip(&group_of) {
-            let n = groups[g].1.normalize_or_zero();
+            let n = groups[g].2.normalize_or_zero();
             let n = if n == DVec3::ZERO { groups[g].0 } else { n };
             if n != DVec3::ZERO {
-                out[c as usize / 3][c as usize % 3] = n.to_array();
+                out[c as usize] = n.to_array();
             }
         }
     }

@@ -18,6 +18,7 @@
 //! - `run`: the step loop, rules, compounds, statistics; `error`: its
 //!   typed errors ([`StepError`], [`RunError`]).
 
+mod asset;
 pub mod commands;
 mod error;
 mod fields;
@@ -30,6 +31,7 @@ mod run;
 pub mod scope;
 mod surfaces;
 
+pub use asset::{export, part_counts, PartCount};
 pub use error::{RunError, RunErrorKind, StepError};
 pub use fields::{FieldStats, Input, SkinCounts};
 pub use run::{

@@ -153,6 +153,8 @@ const NO_SLOT: u32 = u32::MAX;
 
 struct Runner<'p> {
     program: &'p Program,
+    /// Part and material of the enclosing compound calls' products.
+    looks: (Option<u32>, Option<u32>),
     inputs: Arc<[Input]>,
     max_cells: u64,
     mesh_progress: crate::sdf::Progress,
@@ -198,6 +200,9 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
     let mut mesh = Mesh::new();
     if program.uses_graph {
         graph::ensure_layers(&mut mesh);
+    }
+    if program.tags_looks {
+        super::asset::ensure_layers(&mut mesh);
     }
     runner
         .run_steps(&mut mesh, &program.steps, true)
@@ -253,6 +258,7 @@ impl<'p> Runner<'p> {
             reactions: vec![program.on_intersection],
             merger: Merger::new(),
             guard: Guard::new(),
+            looks: (None, None),
         };
         runner.product_slot = vec![NO_SLOT; program.step_count];
         let every_step = program
@@ -491,7 +497,22 @@ impl Runner<'_> {
         let started = Instant::now();
         let generation = step.uid + 1;
         let mut tally = Tally::default();
-        let made = match self.step_products(mesh, step, generation, &mut tally) {
+        // A compound call's part and material are its steps' default; its
+        // steps tag their own products.
+        let compound = matches!(step.op, Op::Compound { .. });
+        let outer = self.looks;
+        let looks = (step.part.or(outer.0), step.material.or(outer.1));
+        if compound {
+            self.looks = looks;
+        }
+        let products = self.step_products(mesh, step, generation, &mut tally);
+        self.looks = outer;
+        if !compound && self.program.tags_looks {
+            if let Ok(made) = &products {
+                super::asset::tag(mesh, made, looks);
+            }
+        }
+        let made = match products {
             Ok(made) => made,
             Err(stop) => {
                 // A cancelled or failed run still counts what it matched

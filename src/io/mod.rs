@@ -201,7 +201,7 @@ pub fn decode_with(
     resolve: &mut Resolve,
 ) -> Result<IndexedMesh, IoError> {
     match format {
-        MeshFormat::Obj => obj::decode(bytes, path),
+        MeshFormat::Obj => obj::decode_with(bytes, path, resolve),
         MeshFormat::StlAscii | MeshFormat::StlBinary => stl::decode(bytes, path),
         MeshFormat::PlyAscii | MeshFormat::PlyBinary => ply::decode(bytes, path),
         MeshFormat::Gltf | MeshFormat::Glb => gltf::decode_with(bytes, path, resolve),

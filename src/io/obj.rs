@@ -15,14 +15,32 @@
 
 use std::path::Path;
 
+use glam::DVec3;
+
 use super::{parse_f64, push_f64, push_u64, text_lines, IoError};
 use crate::geom::indexed::IndexedMesh;
+use crate::geom::material::sanitize_name;
 
-/// Encodes `mesh` as OBJ text.
+/// Encodes `mesh` as OBJ text (no material library named).
 pub fn encode(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
+    encode_with_library(mesh, None)
+}
+
+/// Encodes `mesh` as OBJ text; with `library`, a `mtllib` line names the
+/// `.mtl` file [`encode_mtl`] makes (written beside the OBJ).
+///
+/// Layout: `v` lines, then shared `vt` and `vn` lines (each distinct value
+/// once, in first-use order), then each part as `o NAME`, its polygons by
+/// material after `usemtl NAME`, and its wire edges (`l`).
+pub fn encode_with_library(mesh: &IndexedMesh, library: Option<&str>) -> Result<Vec<u8>, IoError> {
     mesh.validate()?;
     let mut out = Vec::with_capacity(16 + mesh.positions.len() * 40 + mesh.face_indices.len() * 8);
     out.extend_from_slice(b"# graftal\n");
+    if let Some(name) = library.filter(|_| !mesh.materials.is_empty()) {
+        out.extend_from_slice(b"mtllib ");
+        out.extend_from_slice(name.as_bytes());
+        out.push(b'\n');
+    }
     for p in &mesh.positions {
         out.push(b'v');
         for &c in p {
@@ -31,26 +49,139 @@ pub fn encode(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
         }
         out.push(b'\n');
     }
-    for poly in mesh.polygons() {
-        out.push(b'f');
-        for &i in poly {
-            out.push(b' ');
-            push_u64(&mut out, u64::from(i) + 1);
+    // Texture coordinates and normals, each distinct value written once.
+    let uv_index = shared_values(&mesh.corner_uvs, b"vt", &mut out);
+    let normal_index = shared_values(&mesh.corner_normals, b"vn", &mut out);
+    let (order, starts) = mesh.polygon_groups();
+    let materials = mesh.materials.len().max(1);
+    let named = !mesh.parts.is_empty();
+    for part in 0..mesh.part_count() {
+        let groups = part * materials..(part + 1) * materials;
+        let has_lines = (0..mesh.lines.len()).any(|k| mesh.line_part(k) as usize == part);
+        if named && (starts[groups.start] < starts[groups.end] || has_lines) {
+            out.extend_from_slice(b"o ");
+            out.extend_from_slice(mesh.parts[part].as_bytes());
+            out.push(b'\n');
         }
-        out.push(b'\n');
-    }
-    for line in &mesh.lines {
-        out.extend_from_slice(b"l ");
-        push_u64(&mut out, u64::from(line[0]) + 1);
-        out.push(b' ');
-        push_u64(&mut out, u64::from(line[1]) + 1);
-        out.push(b'\n');
+        for g in groups {
+            let polygons = &order[starts[g]..starts[g + 1]];
+            if polygons.is_empty() {
+                continue;
+            }
+            if let Some(m) = mesh.materials.get(g % materials) {
+                out.extend_from_slice(b"usemtl ");
+                out.extend_from_slice(m.name.as_bytes());
+                out.push(b'\n');
+            }
+            for &k in polygons {
+                let first = mesh.face_starts[k as usize] as usize;
+                out.push(b'f');
+                for (i, &v) in mesh.polygon(k as usize).iter().enumerate() {
+                    out.push(b' ');
+                    push_u64(&mut out, u64::from(v) + 1);
+                    let uv = uv_index.get(first + i);
+                    let normal = normal_index.get(first + i);
+                    if uv.is_some() || normal.is_some() {
+                        out.push(b'/');
+                        if let Some(&t) = uv {
+                            push_u64(&mut out, u64::from(t) + 1);
+                        }
+                        if let Some(&n) = normal {
+                            out.push(b'/');
+                            push_u64(&mut out, u64::from(n) + 1);
+                        }
+                    }
+                }
+                out.push(b'\n');
+            }
+        }
+        for (k, line) in mesh.lines.iter().enumerate() {
+            if mesh.line_part(k) as usize != part {
+                continue;
+            }
+            out.extend_from_slice(b"l ");
+            push_u64(&mut out, u64::from(line[0]) + 1);
+            out.push(b' ');
+            push_u64(&mut out, u64::from(line[1]) + 1);
+            out.push(b'\n');
+        }
     }
     Ok(out)
 }
 
-/// Decodes OBJ text; `path` names the file in errors.
+/// Writes each distinct value of `values` once as `keyword a b [c]`, in
+/// first-use order; returns each entry's line index (0-based).
+fn shared_values<const N: usize>(
+    values: &[[f64; N]],
+    keyword: &[u8],
+    out: &mut Vec<u8>,
+) -> Vec<u32> {
+    let mut seen: std::collections::HashMap<[u64; N], u32> = std::collections::HashMap::new();
+    let mut index = Vec::with_capacity(values.len());
+    for v in values {
+        // -0 and 0 are one value (equal geometry, equal bytes).
+        let v = v.map(|c| c + 0.0);
+        let next = seen.len() as u32;
+        let i = *seen.entry(v.map(f64::to_bits)).or_insert_with(|| {
+            out.extend_from_slice(keyword);
+            for c in v {
+                out.push(b' ');
+                push_f64(out, c);
+            }
+            out.push(b'\n');
+            next
+        });
+        index.push(i);
+    }
+    index
+}
+
+/// The material library (`.mtl`) of `mesh`'s materials, `None` when it
+/// has none: `Kd` is the base colour (linear, as Blender writes it), `d`
+/// its alpha, `Ke` emission, and the PBR extension's `Pm`/`Pr` metallic
+/// and roughness.
+pub fn encode_mtl(mesh: &IndexedMesh) -> Option<Vec<u8>> {
+    if mesh.materials.is_empty() {
+        return None;
+    }
+    let mut out = b"# graftal\n".to_vec();
+    for m in &mesh.materials {
+        out.extend_from_slice(b"newmtl ");
+        out.extend_from_slice(m.name.as_bytes());
+        out.push(b'\n');
+        let mut line = |key: &[u8], values: &[f64]| {
+            out.extend_from_slice(key);
+            for &v in values {
+                out.push(b' ');
+                push_f64(&mut out, v);
+            }
+            out.push(b'\n');
+        };
+        line(b"Kd", &m.base_color[..3]);
+        line(b"d", &m.base_color[3..]);
+        line(b"Ke", &m.emissive);
+        line(b"Pm", &[m.metallic]);
+        line(b"Pr", &[m.roughness]);
+        out.extend_from_slice(b"illum 2\n");
+    }
+    Some(out)
+}
+
+/// Decodes OBJ text; `path` names the file in errors. Material names
+/// come through, with graftal's fallback values (see [`decode_with`]).
 pub fn decode(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
+    decode_with(bytes, path, &mut |_, _| {
+        Err("no material library reader".into())
+    })
+}
+
+/// [`decode`], with `resolve` reading the `mtllib` files (a library that
+/// cannot be read leaves its materials at graftal's fallback values).
+pub fn decode_with(
+    bytes: &[u8],
+    path: &Path,
+    resolve: &mut super::Resolve,
+) -> Result<IndexedMesh, IoError> {
     let mut parser = Parser {
         path,
         mesh: IndexedMesh::new(),
@@ -58,6 +189,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
         polylines: 0,
         refs: Vec::new(),
         forward: Vec::new(),
+        looks: ObjLooks::default(),
     };
     let mut joined: Vec<u8> = Vec::new();
     let mut joined_start = 0;
@@ -87,7 +219,100 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
         let statement = std::mem::take(&mut joined);
         parser.statement(joined_start, &statement)?;
     }
-    parser.finish()
+    let libraries = std::mem::take(&mut parser.looks.libraries);
+    let mut mesh = parser.finish()?;
+    for library in libraries {
+        // At most 16 MiB of material library: names and a few numbers.
+        if let Ok(text) = resolve(&library, 16 << 20) {
+            read_mtl(&text, &mut mesh.materials);
+        }
+    }
+    Ok(mesh)
+}
+
+/// Materials, parts and corner values as the statements give them.
+#[derive(Default)]
+struct ObjLooks {
+    /// `vt` and `vn` values.
+    uvs: Vec<[f64; 2]>,
+    normals: Vec<[f64; 3]>,
+    /// Per corner, as written; resolved at the end.
+    corner_uvs: Vec<CornerRef>,
+    corner_normals: Vec<CornerRef>,
+    /// Part (`o`/`g`) and material (`usemtl`) names in first-use order.
+    parts: Vec<String>,
+    materials: Vec<String>,
+    part: Option<u32>,
+    material: Option<u32>,
+    polygon_parts: Vec<Option<u32>>,
+    line_parts: Vec<Option<u32>>,
+    polygon_materials: Vec<Option<u32>>,
+    libraries: Vec<String>,
+}
+
+/// A corner's `vt` or `vn` reference as written.
+#[derive(Clone, Copy, Default)]
+struct CornerRef {
+    /// 1-based, negative relative to `count`; 0 = none.
+    value: i64,
+    /// Values read before the statement (for relative references).
+    count: usize,
+    line: usize,
+    face: usize,
+}
+
+/// Index of `name` in `names`, added when new.
+fn intern(names: &mut Vec<String>, name: String) -> u32 {
+    match names.iter().position(|n| *n == name) {
+        Some(i) => i as u32,
+        None => {
+            names.push(name);
+            names.len() as u32 - 1
+        }
+    }
+}
+
+/// Fills the values of `materials` from a `.mtl` library's `newmtl`
+/// blocks (`Kd`, `d`/`Tr`, `Ke`, `Pm`, `Pr`; others ignored); unknown
+/// materials and malformed lines are skipped.
+fn read_mtl(text: &[u8], materials: &mut [crate::geom::Material]) {
+    let mut current: Option<usize> = None;
+    for (_, raw) in text_lines(text) {
+        let content = match raw.iter().position(|&b| b == b'#') {
+            Some(hash) => &raw[..hash],
+            None => raw,
+        };
+        let mut tokens = content
+            .split(u8::is_ascii_whitespace)
+            .filter(|t| !t.is_empty());
+        let Some(keyword) = tokens.next() else {
+            continue;
+        };
+        let rest: Vec<&[u8]> = tokens.collect();
+        if keyword == b"newmtl" {
+            let name = sanitize_name(&String::from_utf8_lossy(&rest.join(&b' ')), "material");
+            current = materials.iter().position(|m| m.name == name);
+            continue;
+        }
+        let Some(m) = current.map(|i| &mut materials[i]) else {
+            continue;
+        };
+        let numbers: Vec<f64> = rest
+            .iter()
+            .map_while(|t| parse_f64(t))
+            .filter(|x| x.is_finite())
+            .map(|x| x.clamp(0.0, 1.0))
+            .collect();
+        match (keyword, numbers.as_slice()) {
+            (b"Kd", [r, g, b, ..]) => m.base_color[..3].copy_from_slice(&[*r, *g, *b]),
+            (b"d", [d, ..]) => m.base_color[3] = *d,
+            (b"Tr", [t, ..]) => m.base_color[3] = 1.0 - t,
+            (b"Ke", [r, g, b, ..]) => m.emissive = [*r, *g, *b],
+            (b"Pm", [x, ..]) => m.metallic = *x,
+            (b"Pr", [x, ..]) => m.roughness = *x,
+            _ => {}
+        }
+    }
 }
 
 /// A vertex reference not yet resolvable when read (index beyond the vertices so far).
@@ -105,6 +330,7 @@ struct Parser<'a> {
     polylines: usize,
     refs: Vec<u32>,
     forward: Vec<ForwardRef>,
+    looks: ObjLooks,
 }
 
 impl Parser<'_> {
@@ -139,6 +365,8 @@ impl Parser<'_> {
                     ));
                 }
                 self.mesh.push_polygon(&self.refs);
+                self.looks.polygon_parts.push(self.looks.part);
+                self.looks.polygon_materials.push(self.looks.material);
                 Ok(())
             }
             b"l" => {
@@ -157,10 +385,69 @@ impl Parser<'_> {
                 self.mesh
                     .lines
                     .extend(self.refs.windows(2).map(|w| [w[0], w[1]]));
+                let part = self.looks.part;
+                self.looks.line_parts.resize(self.mesh.lines.len(), part);
+                Ok(())
+            }
+            b"vt" => {
+                let [u, v] = self.numbers(line, "texture coordinate", tokens)?;
+                self.looks.uvs.push([u, v]);
+                Ok(())
+            }
+            b"vn" => {
+                let n = DVec3::from_array(self.numbers(line, "normal", tokens)?);
+                // Unit length (files often round), +Z where degenerate.
+                let n = n.try_normalize().unwrap_or(DVec3::Z);
+                self.looks.normals.push(n.to_array());
+                Ok(())
+            }
+            b"o" | b"g" => {
+                let name = tokens.collect::<Vec<_>>().join(&b' ');
+                let name = sanitize_name(&String::from_utf8_lossy(&name), "group");
+                self.looks.part = Some(intern(&mut self.looks.parts, name));
+                Ok(())
+            }
+            b"usemtl" => {
+                let name = tokens.collect::<Vec<_>>().join(&b' ');
+                let name = sanitize_name(&String::from_utf8_lossy(&name), "material");
+                self.looks.material = Some(intern(&mut self.looks.materials, name));
+                Ok(())
+            }
+            b"mtllib" => {
+                let name = tokens.collect::<Vec<_>>().join(&b' ');
+                self.looks
+                    .libraries
+                    .push(String::from_utf8_lossy(&name).into_owned());
                 Ok(())
             }
             _ => Ok(()),
         }
+    }
+
+    /// The `N` finite numbers of a `vt` or `vn` statement (a `vt`'s
+    /// optional third coordinate is ignored).
+    fn numbers<'t, const N: usize>(
+        &self,
+        line: usize,
+        what: &str,
+        mut tokens: impl Iterator<Item = &'t [u8]>,
+    ) -> Result<[f64; N], IoError> {
+        let mut out = [0.0; N];
+        for c in &mut out {
+            let token = tokens
+                .next()
+                .ok_or_else(|| self.syntax(line, format!("{what} needs {N} numbers")))?;
+            *c = parse_f64(token).filter(|x| x.is_finite()).ok_or_else(|| {
+                self.syntax(
+                    line,
+                    format!(
+                        "{what}: invalid number `{}`",
+                        String::from_utf8_lossy(token)
+                    ),
+                )
+            })?;
+        }
+        Ok(out)
     }
 
     fn vertex<'t>(
@@ -207,7 +494,41 @@ impl Parser<'_> {
         self.refs.clear();
         let count = self.mesh.positions.len();
         for token in tokens {
-            let v_part = token.split(|&b| b == b'/').next().unwrap_or_default();
+            let mut fields = token.split(|&b| b == b'/');
+            let v_part = fields.next().unwrap_or_default();
+            if element == "face" {
+                // `v/vt/vn`, `v//vn`, `v/vt`: the corner's references,
+                // resolved against the values read so far.
+                let reference =
+                    |field: Option<&[u8]>, count: usize| -> Result<CornerRef, IoError> {
+                        let Some(text) = field.filter(|t| !t.is_empty()) else {
+                            return Ok(CornerRef::default());
+                        };
+                        let value: i64 = std::str::from_utf8(text)
+                            .ok()
+                            .and_then(|s| s.parse().ok())
+                            .filter(|&v| v != 0)
+                            .ok_or_else(|| {
+                                self.syntax(
+                                    line,
+                                    format!(
+                                        "{element} {index}: invalid reference `{}`",
+                                        String::from_utf8_lossy(token)
+                                    ),
+                                )
+                            })?;
+                        Ok(CornerRef {
+                            value,
+                            count,
+                            line,
+                            face: index,
+                        })
+                    };
+                let uv = reference(fields.next(), self.looks.uvs.len())?;
+                let normal = reference(fields.next(), self.looks.normals.len())?;
+                self.looks.corner_uvs.push(uv);
+                self.looks.corner_normals.push(normal);
+            }
             let value: i64 = std::str::from_utf8(v_part)
                 .ok()
                 .and_then(|s| s.parse().ok())
@@ -271,7 +592,104 @@ impl Parser<'_> {
                 count,
             });
         }
-        Ok(self.mesh)
+        let mut mesh = self.mesh;
+        let looks = self.looks;
+        let path = self.path;
+        let resolve = |r: &CornerRef, total: usize, what: &str| -> Result<Option<usize>, IoError> {
+            if r.value == 0 {
+                return Ok(None);
+            }
+            let i = if r.value > 0 {
+                r.value - 1
+            } else {
+                r.count as i64 + r.value
+            };
+            match usize::try_from(i).ok().filter(|&i| i < total) {
+                Some(i) => Ok(Some(i)),
+                None => Err(IoError::Syntax {
+                    path: path.to_path_buf(),
+                    line: r.line,
+                    message: format!(
+                        "face {}: {what} {} does not exist ({total} read)",
+                        r.face, r.value
+                    ),
+                }),
+            }
+        };
+        if looks.corner_uvs.iter().any(|r| r.value != 0) {
+            mesh.corner_uvs = looks
+                .corner_uvs
+                .iter()
+                .map(|r| {
+                    resolve(r, looks.uvs.len(), "texture coordinate")
+                        .map(|i| i.map_or([0.0; 2], |i| looks.uvs[i]))
+                })
+                .collect::<Result<_, _>>()?;
+        }
+        if looks.corner_normals.iter().any(|r| r.value != 0) {
+            let mut flat = Vec::with_capacity(mesh.face_indices.len());
+            let mut tri = crate::geom::indexed::PolygonTriangulator::default();
+            for poly in mesh.polygons() {
+                let n = tri.run(&mesh, poly).unwrap_or(DVec3::Z).to_array();
+                flat.extend(std::iter::repeat_n(n, poly.len()));
+            }
+            mesh.corner_normals = looks
+                .corner_normals
+                .iter()
+                .zip(flat)
+                .map(|(r, flat)| {
+                    resolve(r, looks.normals.len(), "normal")
+                        .map(|i| i.map_or(flat, |i| looks.normals[i]))
+                })
+                .collect::<Result<_, _>>()?;
+        }
+        let has_parts = !looks.parts.is_empty();
+        if has_parts {
+            // Elements before the first `o`/`g` form a part of their own.
+            let mut parts = looks.parts;
+            let unnamed = looks
+                .polygon_parts
+                .iter()
+                .chain(&looks.line_parts)
+                .any(Option::is_none);
+            let default = parts.len() as u32;
+            if unnamed {
+                parts.push("default".into());
+                crate::geom::material::dedupe_names(&mut parts);
+            }
+            mesh.parts = parts;
+            mesh.polygon_parts = looks
+                .polygon_parts
+                .iter()
+                .map(|p| p.unwrap_or(default))
+                .collect();
+            mesh.line_parts = looks
+                .line_parts
+                .iter()
+                .map(|p| p.unwrap_or(default))
+                .collect();
+        }
+        if !looks.materials.is_empty() && mesh.polygon_count() > 0 {
+            let mut names = looks.materials;
+            let default = names.len() as u32;
+            if looks.polygon_materials.iter().any(Option::is_none) {
+                names.push("default".into());
+                crate::geom::material::dedupe_names(&mut names);
+            }
+            mesh.materials = names
+                .into_iter()
+                .map(|name| crate::geom::Material {
+                    name,
+                    ..crate::geom::Material::fallback()
+                })
+                .collect();
+            mesh.polygon_materials = looks
+                .polygon_materials
+                .iter()
+                .map(|m| m.unwrap_or(default))
+                .collect();
+        }
+        Ok(mesh)
     }
 }
 

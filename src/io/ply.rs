@@ -9,6 +9,9 @@
 //! element edge K        property int vertex1, property int vertex2   (only if there are lines)
 //! ```
 //!
+//! A mesh with parts names them in `comment part K NAME` header lines and
+//! gives faces and edges an `int part` property (read back the same way).
+//!
 //! Reading accepts ASCII, binary little endian and binary big endian with any scalar types:
 //! `vertex` (`x`, `y`, `z` required; every other scalar property whose name is a valid scalar
 //! name becomes a vertex scalar), `face` (`vertex_indices` or `vertex_index` list), `edge`
@@ -18,6 +21,11 @@ use std::path::Path;
 
 use super::{push_f64, push_u64, IoError};
 use crate::geom::indexed::IndexedMesh;
+use crate::geom::material::sanitize_name;
+
+/// Most parts a PLY file's `part` property may number (a part becomes a
+/// node or group in other formats).
+const MAX_PARTS: u32 = 1 << 16;
 
 /// PLY body encoding for writing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,7 +55,17 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
         Encoding::Ascii => b"ascii",
         Encoding::BinaryLittleEndian => b"binary_little_endian",
     });
-    out.extend_from_slice(b" 1.0\ncomment graftal\nelement vertex ");
+    out.extend_from_slice(b" 1.0\ncomment graftal\n");
+    // Part names ride in comments; faces and edges carry the index.
+    for (k, name) in mesh.parts.iter().enumerate() {
+        out.extend_from_slice(b"comment part ");
+        push_u64(&mut out, k as u64);
+        out.push(b' ');
+        out.extend_from_slice(name.as_bytes());
+        out.push(b'\n');
+    }
+    let parts = !mesh.parts.is_empty();
+    out.extend_from_slice(b"element vertex ");
     push_u64(&mut out, vertex_count as u64);
     out.extend_from_slice(b"\nproperty double x\nproperty double y\nproperty double z\n");
     for (name, _) in &scalars {
@@ -62,10 +80,16 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
     } else {
         b"\nproperty list uchar int vertex_indices\n"
     });
+    if parts {
+        out.extend_from_slice(b"property int part\n");
+    }
     if !mesh.lines.is_empty() {
         out.extend_from_slice(b"element edge ");
         push_u64(&mut out, mesh.lines.len() as u64);
         out.extend_from_slice(b"\nproperty int vertex1\nproperty int vertex2\n");
+        if parts {
+            out.extend_from_slice(b"property int part\n");
+        }
     }
     out.extend_from_slice(b"end_header\n");
 
@@ -81,18 +105,26 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                 }
                 out.push(b'\n');
             }
-            for poly in mesh.polygons() {
+            for (k, poly) in mesh.polygons().enumerate() {
                 push_u64(&mut out, poly.len() as u64);
                 for &i in poly {
                     out.push(b' ');
                     push_u64(&mut out, u64::from(i));
                 }
+                if parts {
+                    out.push(b' ');
+                    push_u64(&mut out, u64::from(mesh.polygon_part(k)));
+                }
                 out.push(b'\n');
             }
-            for line in &mesh.lines {
+            for (k, line) in mesh.lines.iter().enumerate() {
                 push_u64(&mut out, u64::from(line[0]));
                 out.push(b' ');
                 push_u64(&mut out, u64::from(line[1]));
+                if parts {
+                    out.push(b' ');
+                    push_u64(&mut out, u64::from(mesh.line_part(k)));
+                }
                 out.push(b'\n');
             }
         }
@@ -104,7 +136,7 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                     out.extend_from_slice(&x.to_le_bytes());
                 }
             }
-            for poly in mesh.polygons() {
+            for (k, poly) in mesh.polygons().enumerate() {
                 if wide_counts {
                     out.extend_from_slice(&(poly.len() as u32).to_le_bytes());
                 } else {
@@ -114,10 +146,16 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                     // Validated above: every index is below the vertex count <= i32::MAX.
                     out.extend_from_slice(&(i as i32).to_le_bytes());
                 }
+                if parts {
+                    out.extend_from_slice(&(mesh.polygon_part(k) as i32).to_le_bytes());
+                }
             }
-            for line in &mesh.lines {
+            for (k, line) in mesh.lines.iter().enumerate() {
                 for &i in line {
                     out.extend_from_slice(&(i as i32).to_le_bytes());
+                }
+                if parts {
+                    out.extend_from_slice(&(mesh.line_part(k) as i32).to_le_bytes());
                 }
             }
         }
@@ -194,6 +232,8 @@ enum Format {
 struct Header {
     format: Format,
     elements: Vec<Element>,
+    /// `comment part K NAME` lines: part names by index.
+    part_names: Vec<(u64, String)>,
     /// Byte offset of the body.
     body: usize,
 }
@@ -208,6 +248,7 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header, IoError> {
     let mut line_no = 0;
     let mut format = None;
     let mut elements: Vec<Element> = Vec::new();
+    let mut part_names = Vec::new();
     loop {
         line_no += 1;
         let Some(len) = bytes[offset..].iter().position(|&b| b == b'\n') else {
@@ -229,7 +270,16 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header, IoError> {
             continue;
         }
         match words.next() {
-            None | Some("comment") | Some("obj_info") => {}
+            Some("comment") => {
+                if let (Some("part"), Some(k), Some(name)) =
+                    (words.next(), words.next(), words.next())
+                {
+                    if let Ok(k) = k.parse::<u64>() {
+                        part_names.push((k, name.to_owned()));
+                    }
+                }
+            }
+            None | Some("obj_info") => {}
             Some("format") => {
                 let f = match words.next() {
                     Some("ascii") => Format::Ascii,
@@ -300,6 +350,7 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header, IoError> {
     Ok(Header {
         format,
         elements,
+        part_names,
         body: offset,
     })
 }
@@ -437,6 +488,7 @@ enum Role {
     Scalar(usize),
     FaceIndices,
     EdgeEnd(usize),
+    Part,
 }
 
 fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<IndexedMesh, IoError> {
@@ -457,6 +509,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
     let mut mesh = IndexedMesh::new();
     let mut scalars: Vec<(String, Vec<f64>)> = Vec::new();
     let mut list: Vec<u32> = Vec::new();
+    let (mut polygon_parts, mut line_parts, mut parts_read) = (Vec::new(), Vec::new(), false);
     // Caps up-front allocation: counts come from an untrusted header.
     let cap = |count: u64| count.min(1 << 16) as usize;
 
@@ -484,6 +537,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                     }
                     ("edge", "vertex1", Kind::Scalar(_)) => Role::EdgeEnd(0),
                     ("edge", "vertex2", Kind::Scalar(_)) => Role::EdgeEnd(1),
+                    ("face" | "edge", "part", Kind::Scalar(_)) => Role::Part,
                     _ => Role::Skip,
                 },
             )
@@ -523,6 +577,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
             let index = index as usize;
             let mut position = [0.0; 3];
             let mut edge = [0u32; 2];
+            let mut part = 0u32;
             for (property, role) in element.properties.iter().zip(&roles) {
                 let what = || format!("property `{}` of {} {index}", property.name, element.name);
                 match property.kind {
@@ -533,6 +588,18 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                             Role::Scalar(k) => scalars[k].1.push(value),
                             Role::EdgeEnd(end) => {
                                 edge[end] = vertex_ref(value, vertex_count, "edge", index, path)?
+                            }
+                            Role::Part => {
+                                part = u32::try_from(value as i64)
+                                    .ok()
+                                    .filter(|&p| f64::from(p) == value && p < MAX_PARTS)
+                                    .ok_or_else(|| {
+                                        malformed(format!(
+                                            "{} is {value}, not a part index below {MAX_PARTS}",
+                                            what()
+                                        ))
+                                    })?;
+                                parts_read = true;
                             }
                             Role::Skip | Role::FaceIndices => {}
                         }
@@ -571,10 +638,34 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                     }
                     mesh.positions.push(position);
                 }
-                "edge" => mesh.lines.push(edge),
+                "edge" => {
+                    mesh.lines.push(edge);
+                    line_parts.push(part);
+                }
+                "face" => polygon_parts.push(part),
                 _ => {}
             }
         }
+    }
+    if parts_read {
+        let count = polygon_parts
+            .iter()
+            .chain(&line_parts)
+            .max()
+            .map_or(0, |&p| p as usize + 1);
+        let mut names: Vec<String> = (0..count)
+            .map(|k| {
+                header
+                    .part_names
+                    .iter()
+                    .find(|(i, _)| *i == k as u64)
+                    .map_or_else(|| format!("part_{k}"), |(_, n)| sanitize_name(n, "part"))
+            })
+            .collect();
+        crate::geom::material::dedupe_names(&mut names);
+        mesh.parts = names;
+        mesh.polygon_parts = polygon_parts;
+        mesh.line_parts = line_parts;
     }
     for (name, values) in &scalars {
         if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {

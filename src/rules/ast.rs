@@ -58,6 +58,24 @@ pub struct RuleFile {
     /// Default reaction to an intersecting product (`policy = "intersect"`).
     #[serde(default)]
     pub on_intersection: Option<Spanned<OnIntersectionName>>,
+    /// Materials (`[materials.NAME]`), named by parts and steps.
+    #[serde(default)]
+    pub materials: Named<Spanned<Args>>,
+    /// Part settings (`[parts.NAME]`: material, normals, uv); parts named
+    /// only by steps take the file's settings.
+    #[serde(default)]
+    pub parts: Named<Spanned<Args>>,
+    /// The material of everything no part or step gives one.
+    #[serde(default)]
+    pub material: Option<Spanned<String>>,
+    /// Shading normals of every part that sets none: `"flat"`, `"smooth"`
+    /// or `{ crease = DEGREES }`.
+    #[serde(default)]
+    pub normals: Option<Spanned<ArgValue>>,
+    /// Texture coordinates of every part that sets none: `"none"` or
+    /// `{ projection = "box", size = 1 }`.
+    #[serde(default)]
+    pub uv: Option<Spanned<ArgValue>>,
 }
 
 /// What happens when a product would intersect the model.
@@ -436,6 +454,11 @@ pub struct Step {
     pub tolerance: Option<Spanned<f64>>,
     /// Reaction to an intersecting product.
     pub on_intersection: Option<Spanned<OnIntersectionName>>,
+    /// The part the step's products belong to (inside a compound call:
+    /// every product of the call whose step names none).
+    pub part: Option<Spanned<String>>,
+    /// The material of the step's products, over their part's.
+    pub material: Option<Spanned<String>>,
     /// Keys that are neither step fields nor operators, and operators past
     /// the first: reported by the compiler at their exact position.
     pub stray_keys: Vec<Spanned<String>>,
@@ -452,6 +475,9 @@ pub const STEP_KEYS: &[&str] = &[
     "repeat",
     "policy",
     "tolerance",
+    "on_intersection",
+    "part",
+    "material",
 ];
 
 /// An operator's arguments as written: its table's keys and values in
@@ -599,6 +625,8 @@ impl<'de> Deserialize<'de> for UnspannedStep {
                     policy: None,
                     tolerance: None,
                     on_intersection: None,
+                    part: None,
+                    material: None,
                     stray_keys: Vec::new(),
                 };
                 while let Some(key) = map.next_key::<Spanned<String>>()? {
@@ -612,6 +640,8 @@ impl<'de> Deserialize<'de> for UnspannedStep {
                         "policy" => step.policy = Some(map.next_value()?),
                         "tolerance" => step.tolerance = Some(map.next_value()?),
                         "on_intersection" => step.on_intersection = Some(map.next_value()?),
+                        "part" => step.part = Some(map.next_value()?),
+                        "material" => step.material = Some(map.next_value()?),
                         "compound" => step.compound = Some((key, map.next_value()?)),
                         other => match next_operation(&mut map, other)? {
                             Some(operation) if step.op.is_none() => {

@@ -54,6 +54,58 @@ pub struct Program {
     /// Every `[nurbs.NAME]` surface, in file order, referenced by index
     /// from [`Arg::Surface`].
     pub nurbs: Vec<crate::rules::nurbs_def::SurfaceDef>,
+    /// Parts and materials (issue 16); part 0 is the default part.
+    pub look: Look,
+    /// Whether any step names a part or material, so the engine keeps
+    /// the face layers [`PART_LAYER`] and [`MATERIAL_LAYER`].
+    pub tags_looks: bool,
+}
+
+/// Face (and wire edge) layer holding each element's part index.
+pub const PART_LAYER: &str = "part";
+/// Face layer holding each face's material index, or [`NO_MATERIAL`].
+pub const MATERIAL_LAYER: &str = "material";
+/// A face whose step named no material: its part's applies.
+pub const NO_MATERIAL: i64 = -1;
+
+/// How the model looks in its files: its parts and materials.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Look {
+    /// Part 0 is the default part (named after the rule file), then the
+    /// `[parts.NAME]` tables in name order, then parts only steps name,
+    /// in the order the compiler meets them.
+    pub parts: Vec<PartLook>,
+    /// The `[materials.NAME]` tables, in name order.
+    pub materials: Vec<crate::geom::Material>,
+}
+
+/// One part's settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartLook {
+    pub name: String,
+    /// Index into [`Look::materials`]; `None`: graftal's fallback.
+    pub material: Option<u32>,
+    /// Crease angle of the smooth normals in degrees; 0 = flat.
+    pub crease: f64,
+    pub uv: Option<crate::geom::uv::UvMapping>,
+}
+
+impl Look {
+    /// The index of part `name`, added with part 0's settings when new.
+    pub fn part_index(&mut self, name: &str) -> u32 {
+        if let Some(i) = self.parts.iter().position(|p| p.name == name) {
+            return i as u32;
+        }
+        let mut part = self.parts.first().cloned().unwrap_or(PartLook {
+            name: String::new(),
+            material: None,
+            crease: 0.0,
+            uv: None,
+        });
+        part.name = name.to_owned();
+        self.parts.push(part);
+        self.parts.len() as u32 - 1
+    }
 }
 
 /// A file a rule file refers to.
@@ -276,6 +328,10 @@ pub struct StepBody {
     /// The step's own policy (G³ commands and compounds); `None` inherits
     /// the enclosing compound call's, or the file's.
     pub policy: Option<Policy>,
+    /// Part the products belong to (index into [`Look::parts`]).
+    pub part: Option<u32>,
+    /// Material of the products (index into [`Look::materials`]).
+    pub material: Option<u32>,
 }
 
 impl std::ops::Deref for Step {

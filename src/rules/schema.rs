@@ -230,6 +230,17 @@ fn step(kind: StepKind) -> Value {
                     "description": "G³ commands and compound calls: reaction to an intersecting product" }),
         );
     }
+    props.insert(
+        "part".into(),
+        describe(
+            r("part_name"),
+            "the part the step's products belong to (glTF node, OBJ group)",
+        ),
+    );
+    props.insert(
+        "material".into(),
+        json!({ "type": "string", "description": "a [materials.NAME] table for the step's products" }),
+    );
     for op in &ops {
         props.insert(
             op.name.into(),
@@ -373,6 +384,64 @@ pub fn schema() -> Value {
         "condition".into(),
         json!({ "type": "string", "minLength": 1,
                 "description": "expression over parameters and element properties; non-zero is true" }),
+    );
+    definitions.insert(
+        "part_name".into(),
+        json!({ "type": "string", "pattern": "^[A-Za-z0-9_.-]{1,64}$" }),
+    );
+    let unit = json!({ "type": "number", "minimum": 0, "maximum": 1 });
+    let color = |alpha: bool| {
+        let max = if alpha { 4 } else { 3 };
+        let hex = if alpha {
+            "^#([0-9a-fA-F]{3}|[0-9a-fA-F]{6}|[0-9a-fA-F]{8})$"
+        } else {
+            "^#([0-9a-fA-F]{3}|[0-9a-fA-F]{6})$"
+        };
+        json!({ "oneOf": [
+            { "type": "string", "pattern": hex, "description": "sRGB hex" },
+            { "type": "array", "items": unit, "minItems": 3, "maxItems": max, "description": "linear [0, 1]" }
+        ] })
+    };
+    definitions.insert(
+        "material".into(),
+        json!({ "type": "object", "additionalProperties": false, "properties": {
+            "base_color": describe(color(true), "base colour (\"#rrggbb[aa]\" sRGB, or linear numbers)"),
+            "metallic": describe(unit.clone(), "metalness (0)"),
+            "roughness": describe(unit.clone(), "perceptual roughness (0.6)"),
+            "emissive": describe(color(false), "emitted colour (black)"),
+            "alpha_mode": { "enum": ["opaque", "mask", "blend"] },
+            "alpha_cutoff": describe(unit.clone(), "with alpha_mode = \"mask\" (0.5)"),
+            "double_sided": { "type": "boolean", "description": "default: only when its faces are not closed shells" }
+        } }),
+    );
+    definitions.insert(
+        "normals".into(),
+        json!({ "oneOf": [
+            { "enum": ["flat", "smooth"] },
+            { "type": "object", "additionalProperties": false, "required": ["crease"],
+              "properties": { "crease": { "type": "number", "minimum": 0, "maximum": 180,
+                  "description": "edges sharper than this many degrees stay sharp" } } }
+        ] }),
+    );
+    definitions.insert(
+        "uv".into(),
+        json!({ "oneOf": [
+            { "const": "none" },
+            { "type": "object", "additionalProperties": false, "required": ["projection"],
+              "properties": {
+                "projection": { "enum": ["box", "planar", "cylindrical"] },
+                "size": { "type": "number", "exclusiveMinimum": 0, "description": "model length one texture repeat covers (1)" },
+                "axis": { "enum": ["x", "y", "z"], "description": "planar and cylindrical: the axis (z)" }
+              } }
+        ] }),
+    );
+    definitions.insert(
+        "part".into(),
+        json!({ "type": "object", "additionalProperties": false, "properties": {
+            "material": { "type": "string" },
+            "normals": r("normals"),
+            "uv": r("uv")
+        } }),
     );
     definitions.insert(
         "domain".into(),
@@ -545,6 +614,34 @@ pub fn schema() -> Value {
                 "type": "object",
                 "description": "parametric surfaces, used by the nurbs operator's `surface`",
                 "additionalProperties": r("nurbs_surface") }),
+            ),
+            (
+                "materials",
+                json!({ "type": "object", "description": "PBR materials, named by parts and steps",
+                        "propertyNames": r("part_name"), "additionalProperties": r("material") }),
+            ),
+            (
+                "parts",
+                json!({ "type": "object", "description": "part settings: material, normals, uv",
+                        "propertyNames": r("part_name"), "additionalProperties": r("part") }),
+            ),
+            (
+                "material",
+                json!({ "type": "string", "description": "material of everything no part or step gives one" }),
+            ),
+            (
+                "normals",
+                describe(
+                    r("normals"),
+                    "shading normals of parts that set none (\"flat\")",
+                ),
+            ),
+            (
+                "uv",
+                describe(
+                    r("uv"),
+                    "texture coordinates of parts that set none (\"none\")",
+                ),
             ),
             (
                 "policy",

@@ -1,6 +1,7 @@
 //! Reading `.gltf` and `.glb` (see the module overview in `gltf`).
 
 use super::*;
+use crate::geom::material::{sanitize_name, AlphaMode, Material};
 
 /// Decodes `.gltf` JSON or `.glb` (detected by the `glTF` magic); `path` names the file in
 /// errors. External buffer files are refused: see [`decode_with`].
@@ -304,6 +305,96 @@ pub(super) struct Reader<'a> {
     path: &'a Path,
 }
 
+/// Parts, materials and corner values of the mesh being read, per
+/// polygon (and per line) and per corner, as they are pushed.
+#[derive(Default)]
+pub(super) struct Looks {
+    /// Part of the instance being read.
+    part: u32,
+    polygon_parts: Vec<u32>,
+    line_parts: Vec<u32>,
+    materials: Vec<Option<u32>>,
+    normals: Vec<Option<[f64; 3]>>,
+    uvs: Vec<Option<[f64; 2]>>,
+    colors: Vec<Option<[f64; 3]>>,
+}
+
+/// Part names for the instances (valid and unique: other characters
+/// become `_`, repeats get `.1`, `.2`, …, missing names `mesh_N`) and
+/// each instance's part; instances of one name share a part.
+fn part_names(instances: &[(usize, Mat4, Option<String>)]) -> (Vec<String>, Vec<u32>) {
+    let mut names: Vec<String> = Vec::new();
+    let mut of = Vec::with_capacity(instances.len());
+    for (mesh, _, name) in instances {
+        let name = sanitize_name(name.as_deref().unwrap_or(""), &format!("mesh_{mesh}"));
+        let index = match names.iter().position(|n| *n == name) {
+            Some(i) => i,
+            None => {
+                names.push(name);
+                names.len() - 1
+            }
+        };
+        of.push(index as u32);
+    }
+    (names, of)
+}
+
+/// Makes material names unique (`wood`, `wood.1`, …).
+fn dedupe_names(materials: &mut [Material]) {
+    let mut names: Vec<String> = materials.iter().map(|m| m.name.clone()).collect();
+    crate::geom::material::dedupe_names(&mut names);
+    for (m, name) in materials.iter_mut().zip(names) {
+        m.name = name;
+    }
+}
+
+/// A glTF material as graftal's (factors clamped into [0, 1]).
+fn material((index, m): (usize, &json::Material)) -> Material {
+    let unit = |x: f32| {
+        let x = f64::from(x);
+        if x.is_nan() {
+            1.0
+        } else {
+            x.clamp(0.0, 1.0)
+        }
+    };
+    let pbr = &m.pbr_metallic_roughness;
+    let alpha = match m.alpha_mode {
+        Checked::Valid(json::material::AlphaMode::Mask) => {
+            AlphaMode::Mask(m.alpha_cutoff.map_or(0.5, |c| unit(c.0)))
+        }
+        Checked::Valid(json::material::AlphaMode::Blend) => AlphaMode::Blend,
+        _ => AlphaMode::Opaque,
+    };
+    Material {
+        name: sanitize_name(
+            m.name.as_deref().unwrap_or(""),
+            &format!("material_{index}"),
+        ),
+        base_color: pbr.base_color_factor.0.map(unit),
+        metallic: unit(pbr.metallic_factor.0),
+        roughness: unit(pbr.roughness_factor.0),
+        emissive: m.emissive_factor.0.map(unit),
+        alpha,
+        double_sided: Some(m.double_sided),
+    }
+}
+
+/// How normals transform under a node's matrix: the inverse transpose of
+/// its linear part, up to a positive scale (the cofactor matrix, with the
+/// determinant's sign taken out so mirroring keeps normals pointing out).
+fn cofactor(m: &Mat4) -> glam::DMat3 {
+    // Column-major: column c is m[4c..4c + 3].
+    let col = |c: usize| DVec3::new(m[4 * c], m[4 * c + 1], m[4 * c + 2]);
+    let (a, b, c) = (col(0), col(1), col(2));
+    let cof = glam::DMat3::from_cols(b.cross(c), c.cross(a), a.cross(b));
+    if a.dot(b.cross(c)) < 0.0 {
+        -cof
+    } else {
+        cof
+    }
+}
+
 /// Vertex scalar columns of the mesh being read, with "has a value yet" flags.
 pub(super) struct Columns {
     names: Vec<String>,
@@ -324,7 +415,7 @@ impl Reader<'_> {
         // Scalar columns: valid `_NAME`s of the instanced meshes, lower-cased, sorted.
         let mut names: Vec<String> = instances
             .iter()
-            .filter_map(|(mesh, _)| self.custom.get(*mesh))
+            .filter_map(|(mesh, _, _)| self.custom.get(*mesh))
             .flatten()
             .flatten()
             .map(|(name, _)| name.to_ascii_lowercase())
@@ -343,8 +434,11 @@ impl Reader<'_> {
         };
         let mut merger = VertexMerger::default();
         let mut mesh = IndexedMesh::new();
-        for (mesh_index, matrix) in &instances {
+        let mut looks = Looks::default();
+        let names = part_names(&instances);
+        for ((mesh_index, matrix, _), part) in instances.iter().zip(&names.1) {
             let json_mesh = &self.root.meshes[*mesh_index];
+            looks.part = *part;
             for (prim_index, primitive) in json_mesh.primitives.iter().enumerate() {
                 self.primitive(
                     *mesh_index,
@@ -353,19 +447,92 @@ impl Reader<'_> {
                     matrix,
                     &mut merger,
                     &mut columns,
+                    &mut looks,
                     &mut mesh,
                 )?;
             }
         }
         mesh.positions = merger.positions;
         mesh.vertex_scalars = columns.names.into_iter().zip(columns.values).collect();
+        if names.0.len() > 1 || instances.iter().any(|i| i.2.is_some()) {
+            mesh.parts = names.0;
+            mesh.polygon_parts = looks.polygon_parts;
+            mesh.line_parts = looks.line_parts;
+        }
+        self.finish_looks(
+            &mut mesh,
+            looks.materials,
+            looks.normals,
+            looks.uvs,
+            looks.colors,
+        );
         // glTF is +Y up (spec §3.4); graftal's kernel is Z-up.
         mesh.y_up_to_z_up();
         Ok(mesh)
     }
 
-    /// (mesh index, world matrix) for every node with a mesh, in traversal order.
-    fn instances(&self) -> Result<Vec<(usize, Mat4)>, IoError> {
+    /// Materials, and the per-corner values where any primitive had them
+    /// (the others' corners get their polygon's normal, (0, 0), white).
+    fn finish_looks(
+        &self,
+        mesh: &mut IndexedMesh,
+        materials: Vec<Option<u32>>,
+        normals: Vec<Option<[f64; 3]>>,
+        uvs: Vec<Option<[f64; 2]>>,
+        colors: Vec<Option<[f64; 3]>>,
+    ) {
+        if !self.root.materials.is_empty() && mesh.polygon_count() > 0 {
+            mesh.materials = self
+                .root
+                .materials
+                .iter()
+                .enumerate()
+                .map(material)
+                .collect();
+            dedupe_names(&mut mesh.materials);
+            let fallback = mesh.materials.len() as u32;
+            if materials.iter().any(Option::is_none) {
+                // The glTF default material (§3.9.6): white, metallic, rough.
+                mesh.materials.push(Material {
+                    name: "gltf_default".into(),
+                    base_color: [1.0; 4],
+                    metallic: 1.0,
+                    roughness: 1.0,
+                    emissive: [0.0; 3],
+                    alpha: AlphaMode::Opaque,
+                    double_sided: Some(false),
+                });
+                dedupe_names(&mut mesh.materials);
+            }
+            mesh.polygon_materials = materials.iter().map(|m| m.unwrap_or(fallback)).collect();
+        }
+        if normals.iter().any(Option::is_some) {
+            let mut tri = PolygonTriangulator::default();
+            let mut out = Vec::with_capacity(normals.len());
+            let mut at = 0;
+            for k in 0..mesh.polygon_count() {
+                let poly = mesh.polygon(k);
+                let flat = tri.run(mesh, poly).unwrap_or(DVec3::Z).to_array();
+                out.extend(
+                    normals[at..at + poly.len()]
+                        .iter()
+                        .map(|n| n.unwrap_or(flat)),
+                );
+                at += poly.len();
+            }
+            mesh.corner_normals = out;
+        }
+        if uvs.iter().any(Option::is_some) {
+            mesh.corner_uvs = uvs.iter().map(|t| t.unwrap_or([0.0; 2])).collect();
+        }
+        if colors.iter().any(Option::is_some) {
+            mesh.corner_colors = colors.iter().map(|c| c.unwrap_or([1.0; 3])).collect();
+        }
+    }
+
+    /// (mesh index, world matrix, name) for every node with a mesh, in
+    /// traversal order; the name is the node's, else its mesh's.
+    fn instances(&self) -> Result<Vec<(usize, Mat4, Option<String>)>, IoError> {
         let root = self.root;
         let roots: Vec<usize> = match root
             .scene
@@ -412,7 +579,11 @@ impl Reader<'_> {
                         m.value()
                     )));
                 }
-                instances.push((m.value(), world));
+                let name = node
+                    .name
+                    .clone()
+                    .or_else(|| root.meshes[m.value()].name.clone());
+                instances.push((m.value(), world, name));
             }
             for child in node.children.iter().flatten().rev() {
                 stack.push((child.value(), world));
@@ -430,6 +601,7 @@ impl Reader<'_> {
         matrix: &Mat4,
         merger: &mut VertexMerger,
         columns: &mut Columns,
+        looks: &mut Looks,
         mesh: &mut IndexedMesh,
     ) -> Result<(), IoError> {
         use json::mesh::Mode;
@@ -552,26 +724,22 @@ impl Reader<'_> {
         }
 
         let r = &resolved;
+        // Triangles as positions in `indices`, so each corner finds its
+        // source vertex's normal, texture coordinates and colour.
+        let mut triangles: Vec<[usize; 3]> = Vec::new();
         match mode {
             Mode::Triangles => {
-                for t in r.chunks_exact(3) {
-                    mesh.push_polygon(t);
-                }
+                triangles.extend((0..r.len() / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]))
             }
-            Mode::TriangleStrip => {
-                for i in 0..r.len().saturating_sub(2) {
-                    let t = if i % 2 == 0 {
-                        [r[i], r[i + 1], r[i + 2]]
-                    } else {
-                        [r[i + 1], r[i], r[i + 2]]
-                    };
-                    mesh.push_polygon(&t);
+            Mode::TriangleStrip => triangles.extend((0..r.len().saturating_sub(2)).map(|i| {
+                if i % 2 == 0 {
+                    [i, i + 1, i + 2]
+                } else {
+                    [i + 1, i, i + 2]
                 }
-            }
+            })),
             Mode::TriangleFan => {
-                for i in 0..r.len().saturating_sub(2) {
-                    mesh.push_polygon(&[r[i + 1], r[i + 2], r[0]]);
-                }
+                triangles.extend((0..r.len().saturating_sub(2)).map(|i| [i + 1, i + 2, 0]))
             }
             Mode::Lines => mesh.lines.extend(r.chunks_exact(2).map(|l| [l[0], l[1]])),
             Mode::LineStrip => mesh.lines.extend(r.windows(2).map(|l| [l[0], l[1]])),
@@ -582,6 +750,70 @@ impl Reader<'_> {
                 }
             }
             Mode::Points => {}
+        }
+        looks.line_parts.resize(mesh.lines.len(), looks.part);
+        if triangles.is_empty() {
+            return Ok(());
+        }
+        let semantic = |s: json::mesh::Semantic| {
+            primitive
+                .attributes
+                .get(&Checked::Valid(s))
+                .map(|a| a.value())
+        };
+        let per_vertex = |accessor: Option<usize>, dims: &[usize], what: &str| {
+            let Some(accessor) = accessor else {
+                return Ok(None);
+            };
+            let actual = self.accessor_bytes(accessor, &context, what)?.4;
+            let wanted = if dims.contains(&actual) {
+                actual
+            } else {
+                dims[0]
+            };
+            let values = self.read_quantized(accessor, wanted, &context, what)?;
+            if values.len() != count * wanted {
+                return Err(self.malformed(format!(
+                    "{context}: {what} has {} values for {count} vertices",
+                    values.len() / wanted
+                )));
+            }
+            Ok(Some((values, wanted)))
+        };
+        use json::mesh::Semantic;
+        let normals = per_vertex(semantic(Semantic::Normals), &[3], "NORMAL")?;
+        let uvs = per_vertex(semantic(Semantic::TexCoords(0)), &[2], "TEXCOORD_0")?;
+        let colors = per_vertex(semantic(Semantic::Colors(0)), &[3, 4], "COLOR_0")?;
+        let cofactor = cofactor(matrix);
+        for t in &triangles {
+            mesh.push_polygon(&t.map(|k| r[k]));
+            looks.polygon_parts.push(looks.part);
+            looks
+                .materials
+                .push(primitive.material.map(|m| m.value() as u32));
+            for &k in t {
+                let v = indices[k] as usize;
+                looks.normals.push(normals.as_ref().and_then(|(n, _)| {
+                    let local = DVec3::new(
+                        f64::from(n[3 * v]),
+                        f64::from(n[3 * v + 1]),
+                        f64::from(n[3 * v + 2]),
+                    );
+                    let world = (cofactor * local).normalize_or_zero();
+                    (world != DVec3::ZERO && world.is_finite()).then(|| world.to_array())
+                }));
+                looks.uvs.push(uvs.as_ref().and_then(|(t, _)| {
+                    let (s, tt) = (f64::from(t[2 * v]), f64::from(t[2 * v + 1]));
+                    // glTF's v runs down the image; graftal's up.
+                    (s.is_finite() && tt.is_finite()).then_some([s, 1.0 - tt])
+                }));
+                looks.colors.push(colors.as_ref().map(|(c, dims)| {
+                    let at = dims * v;
+                    [c[at], c[at + 1], c[at + 2]]
+                        .map(|x| f64::from(x).clamp(0.0, 1.0))
+                        .map(|x| if x.is_nan() { 1.0 } else { x })
+                }));
+            }
         }
         Ok(())
     }

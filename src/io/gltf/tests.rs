@@ -212,7 +212,8 @@ fn awkward_mesh_has_unit_normals_and_no_nan() {
         .unwrap();
     let reader = prim.reader(|_| Some(&blob[..]));
     let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
-    assert_eq!(normals.len(), mesh.face_indices.len());
+    // Corners share a vertex where position and normal agree.
+    assert!(!normals.is_empty() && normals.len() <= mesh.face_indices.len());
     for n in &normals {
         assert!(n.iter().all(|c| c.is_finite()));
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();

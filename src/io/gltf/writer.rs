@@ -1,6 +1,7 @@
 //! Writing `.gltf` and `.glb` (see the module overview in `gltf`).
 
 use super::*;
+use crate::geom::material::{AlphaMode, Material};
 
 pub(crate) const DATA_URI_PREFIX: &str = "data:application/octet-stream;base64,";
 
@@ -10,22 +11,37 @@ pub fn encode_gltf(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
     Ok(json)
 }
 
-/// Encodes `mesh` as binary glTF (`.glb`).
+/// Encodes `mesh` as binary glTF (`.glb`): the 12-byte header, the JSON
+/// chunk padded with spaces and the binary chunk, written once into the
+/// output (glTF 2.0 §4.4; no intermediate copy of the buffer).
 pub fn encode_glb(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
     let (json, bin) = build(mesh, false)?;
-    let glb = ::gltf::binary::Glb {
-        header: ::gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            // Recomputed by `to_vec`.
-            length: 0,
-        },
-        json: Cow::Owned(json),
-        bin: (!bin.is_empty()).then_some(Cow::Borrowed(bytemuck::cast_slice(&bin))),
+    let json_len = json.len().next_multiple_of(4);
+    let bin_bytes: &[u8] = bytemuck::cast_slice(&bin);
+    let bin_chunk = if bin_bytes.is_empty() {
+        0
+    } else {
+        8 + bin_bytes.len()
     };
-    glb.to_vec().map_err(|e| IoError::InvalidMesh {
-        message: format!("GLB container: {e}"),
-    })
+    let total = 12 + 8 + json_len + bin_chunk;
+    let too_big = || IoError::InvalidMesh {
+        message: format!("GLB container: {total} bytes exceed the format's 4 GiB"),
+    };
+    let total32 = u32::try_from(total).map_err(|_| too_big())?;
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total32.to_le_bytes());
+    out.extend_from_slice(&(json_len as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.resize(20 + json_len, b' ');
+    if !bin_bytes.is_empty() {
+        out.extend_from_slice(&(bin_bytes.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(bin_bytes);
+    }
+    Ok(out)
 }
 
 pub(super) fn to_f32(p: [f64; 3]) -> [f32; 3] {
@@ -47,65 +63,205 @@ pub(super) fn unit_f32(v: DVec3) -> [f32; 3] {
     })
 }
 
-/// Where one primitive's arrays live in the binary buffer (word offsets), and its accessors.
-pub(super) struct Plan {
-    position_accessor: Index<json::Accessor>,
-    position: usize,
-    normal: Option<usize>,
-    scalars: Vec<usize>,
-    indices: usize,
-    wide_indices: bool,
+/// One vertex of a primitive: its source vertex and the shading values
+/// it is split by (vertices are shared where all of them agree).
+#[derive(Clone, Copy, PartialEq)]
+pub(super) struct OutVertex {
+    source: u32,
+    normal: [f32; 3],
+    uv: [f32; 2],
+    color: [f32; 3],
 }
 
-/// The binary buffer as little-endian 32-bit words (4-byte alignment for free), filled in place.
-pub(super) struct Words<'a>(&'a mut [u32]);
+/// A primitive before it is laid out: its mode, material, vertices and
+/// indices (triangles or line pairs).
+pub(super) struct Draw {
+    mode: json::mesh::Mode,
+    material: Option<u32>,
+    vertices: Vec<OutVertex>,
+    indices: Vec<u32>,
+}
 
-impl Words<'_> {
-    fn vec3(&mut self, at: usize, v: [f32; 3]) {
-        self.0[at..at + 3].copy_from_slice(&v.map(f32::to_bits));
-    }
+/// Per-source-vertex chains of the output vertices made from it, so a
+/// corner finds an equal vertex of its primitive in a few comparisons
+/// (deterministic: no hashing; reset only where touched).
+#[derive(Default)]
+pub(super) struct Sharing {
+    head: Vec<u32>,
+    next: Vec<u32>,
+    touched: Vec<u32>,
+}
 
-    fn index(&mut self, plan: &Plan, k: usize, value: u32) {
-        if plan.wide_indices {
-            self.0[plan.indices + k] = value;
-        } else {
-            // Two u16 per word, the first in the low half (little-endian byte order).
-            let word = &mut self.0[plan.indices + k / 2];
-            *word |= value << (16 * (k % 2));
+impl Sharing {
+    fn new(vertices: usize) -> Self {
+        Sharing {
+            head: vec![u32::MAX; vertices],
+            next: Vec::new(),
+            touched: Vec::new(),
         }
     }
+
+    /// The index of `v` in `vertices`, added when no equal vertex exists.
+    fn index(&mut self, vertices: &mut Vec<OutVertex>, v: OutVertex) -> u32 {
+        let slot = v.source as usize;
+        let mut at = self.head[slot];
+        while at != u32::MAX {
+            if vertices[at as usize] == v {
+                return at;
+            }
+            at = self.next[at as usize];
+        }
+        let index = vertices.len() as u32;
+        if self.head[slot] == u32::MAX {
+            self.touched.push(v.source);
+        }
+        self.next.push(self.head[slot]);
+        self.head[slot] = index;
+        vertices.push(v);
+        index
+    }
+
+    /// Forgets the primitive just built.
+    fn clear(&mut self) {
+        for &v in &self.touched {
+            self.head[v as usize] = u32::MAX;
+        }
+        self.touched.clear();
+        self.next.clear();
+    }
 }
 
-/// Document under construction: JSON root, buffer size in words, and the custom attributes to
-/// splice into each primitive.
+/// The primitives of each part, in part order: the surface split by
+/// material (material order), then the part's wire edges.
+pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> {
+    use json::mesh::Mode;
+    let parts = mesh.part_count();
+    let materials = mesh.materials.len().max(1);
+    let (order, start) = mesh.polygon_groups();
+    let mut sharing = Sharing::new(mesh.positions.len());
+    let mut tri = PolygonTriangulator::default();
+    let mut local: Vec<u32> = Vec::new();
+    let mut out = Vec::with_capacity(parts);
+    for part in 0..parts {
+        let mut draws = Vec::new();
+        for material in 0..materials {
+            let g = part * materials + material;
+            let polygons = &order[start[g]..start[g + 1]];
+            if polygons.is_empty() {
+                continue;
+            }
+            let mut draw = Draw {
+                mode: Mode::Triangles,
+                material: (!mesh.materials.is_empty()).then_some(material as u32),
+                vertices: Vec::new(),
+                indices: Vec::new(),
+            };
+            for &k in polygons {
+                let k = k as usize;
+                let poly = mesh.polygon(k);
+                let flat = unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z));
+                let first = mesh.face_starts[k] as usize;
+                local.clear();
+                for (i, &v) in poly.iter().enumerate() {
+                    let c = first + i;
+                    let vertex = OutVertex {
+                        source: v,
+                        normal: match mesh.corner_normals.get(c) {
+                            Some(&n) => unit_f32(DVec3::from_array(n)),
+                            None => flat,
+                        },
+                        uv: mesh
+                            .corner_uvs
+                            .get(c)
+                            // glTF's v runs down the image (§3.7.2.1).
+                            .map_or([0.0; 2], |t| [t[0] as f32, (1.0 - t[1]) as f32]),
+                        color: mesh
+                            .corner_colors
+                            .get(c)
+                            .map_or([0.0; 3], |c| c.map(|x| x as f32)),
+                    };
+                    local.push(sharing.index(&mut draw.vertices, vertex));
+                }
+                draw.indices
+                    .extend(tri.triangles.iter().flatten().map(|&i| local[i as usize]));
+            }
+            sharing.clear();
+            if u32::try_from(draw.vertices.len()).is_err() {
+                return Err(IoError::InvalidMesh {
+                    message: "a primitive's vertices exceed glTF's u32 index range".into(),
+                });
+            }
+            draws.push(draw);
+        }
+        let mut wire = Draw {
+            mode: Mode::Lines,
+            material: None,
+            vertices: Vec::new(),
+            indices: Vec::new(),
+        };
+        for (k, line) in mesh.lines.iter().enumerate() {
+            if mesh.line_part(k) as usize != part {
+                continue;
+            }
+            for &v in line {
+                let vertex = OutVertex {
+                    source: v,
+                    normal: [0.0; 3],
+                    uv: [0.0; 2],
+                    color: [0.0; 3],
+                };
+                let index = sharing.index(&mut wire.vertices, vertex);
+                wire.indices.push(index);
+            }
+        }
+        sharing.clear();
+        if !wire.indices.is_empty() {
+            draws.push(wire);
+        }
+        out.push(draws);
+    }
+    Ok(out)
+}
+
+/// The binary buffer as little-endian 32-bit words (4-byte alignment for free).
+pub(super) struct Words(pub Vec<u32>);
+
+impl Words {
+    fn floats(&mut self, values: impl Iterator<Item = f32>) {
+        self.0.extend(values.map(f32::to_bits));
+    }
+}
+
+/// Document under construction: JSON root, buffer, and the custom
+/// attributes to splice into each primitive.
 pub(super) struct Builder {
     root: json::Root,
-    words: usize,
+    words: Words,
     custom: Vec<Vec<(String, u32)>>,
 }
 
 impl Builder {
-    /// Reserves a bufferView + accessor of `count` elements; returns the accessor and the word
-    /// offset of its data.
+    /// Appends a bufferView + accessor over `data` (already pushed from
+    /// word `start`); returns the accessor.
     fn accessor(
         &mut self,
+        start: usize,
         count: usize,
         component: json::accessor::ComponentType,
         type_: json::accessor::Type,
         target: json::buffer::Target,
-    ) -> (Index<json::Accessor>, usize) {
+    ) -> Index<json::Accessor> {
         use json::accessor::{ComponentType, Type};
         let component_size = match component {
             ComponentType::U16 => 2,
             _ => 4,
         };
         let dims = match type_ {
+            Type::Vec2 => 2,
             Type::Vec3 => 3,
             _ => 1,
         };
         let byte_length = count * dims * component_size;
-        let start = self.words;
-        self.words += byte_length.div_ceil(4);
         let view = self.root.push(json::buffer::View {
             buffer: Index::new(0),
             byte_length: USize64(byte_length as u64),
@@ -116,7 +272,7 @@ impl Builder {
             extensions: Default::default(),
             extras: Default::default(),
         });
-        let accessor = self.root.push(json::Accessor {
+        self.root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: None,
             count: USize64(count as u64),
@@ -129,79 +285,113 @@ impl Builder {
             name: None,
             normalized: false,
             sparse: None,
-        });
-        (accessor, start)
+        })
     }
 
-    /// Declares a primitive of `vertices` vertices and `indices` indices.
+    /// Lays out one primitive's arrays and returns its JSON.
     fn primitive(
         &mut self,
-        vertices: usize,
-        indices: usize,
-        normals: bool,
-        names: &[&str],
-        mode: json::mesh::Mode,
-    ) -> (json::mesh::Primitive, Plan) {
+        mesh: &IndexedMesh,
+        draw: &Draw,
+        scalars: &[(&str, &[f64])],
+        material_indices: &[Index<json::Material>],
+    ) -> json::mesh::Primitive {
         use json::accessor::{ComponentType, Type};
         use json::buffer::Target::{ArrayBuffer, ElementArrayBuffer};
         use json::mesh::Semantic;
+        let n = draw.vertices.len();
         let mut attributes = BTreeMap::new();
-        let (position_accessor, position) =
-            self.accessor(vertices, ComponentType::F32, Type::Vec3, ArrayBuffer);
-        attributes.insert(Checked::Valid(Semantic::Positions), position_accessor);
-        let normal = normals.then(|| {
-            let (accessor, start) =
-                self.accessor(vertices, ComponentType::F32, Type::Vec3, ArrayBuffer);
-            attributes.insert(Checked::Valid(Semantic::Normals), accessor);
-            start
-        });
-        let mut custom = Vec::with_capacity(names.len());
-        let mut scalars = Vec::with_capacity(names.len());
-        for name in names {
-            let (accessor, start) =
-                self.accessor(vertices, ComponentType::F32, Type::Scalar, ArrayBuffer);
+        let start = self.words.0.len();
+        let mut bounds = Bounds::new();
+        for v in &draw.vertices {
+            let p = to_f32(turn_y_up(mesh.positions[v.source as usize]));
+            bounds.add(p);
+            self.words.floats(p.into_iter());
+        }
+        let position = self.accessor(start, n, ComponentType::F32, Type::Vec3, ArrayBuffer);
+        let to_value = |v: [f32; 3]| json::Value::from(v.map(f64::from).to_vec());
+        self.root.accessors[position.value()].min = Some(to_value(bounds.min));
+        self.root.accessors[position.value()].max = Some(to_value(bounds.max));
+        attributes.insert(Checked::Valid(Semantic::Positions), position);
+        let surface = draw.mode == json::mesh::Mode::Triangles;
+        if surface {
+            let start = self.words.0.len();
+            self.words
+                .floats(draw.vertices.iter().flat_map(|v| turn_normal(v.normal)));
+            let normal = self.accessor(start, n, ComponentType::F32, Type::Vec3, ArrayBuffer);
+            attributes.insert(Checked::Valid(Semantic::Normals), normal);
+            if !mesh.corner_uvs.is_empty() {
+                let start = self.words.0.len();
+                self.words.floats(draw.vertices.iter().flat_map(|v| v.uv));
+                let uv = self.accessor(start, n, ComponentType::F32, Type::Vec2, ArrayBuffer);
+                attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv);
+            }
+            if !mesh.corner_colors.is_empty() {
+                let start = self.words.0.len();
+                self.words
+                    .floats(draw.vertices.iter().flat_map(|v| v.color));
+                let color = self.accessor(start, n, ComponentType::F32, Type::Vec3, ArrayBuffer);
+                attributes.insert(Checked::Valid(Semantic::Colors(0)), color);
+            }
+        }
+        let mut custom = Vec::with_capacity(scalars.len());
+        for (name, values) in scalars {
+            let start = self.words.0.len();
+            self.words.floats(
+                draw.vertices
+                    .iter()
+                    .map(|v| values[v.source as usize] as f32),
+            );
+            let accessor = self.accessor(start, n, ComponentType::F32, Type::Scalar, ArrayBuffer);
             custom.push((
                 format!("_{}", name.to_ascii_uppercase()),
                 accessor.value() as u32,
             ));
-            scalars.push(start);
         }
         self.custom.push(custom);
-        // u16 indices while the largest index (vertices - 1) stays below the restart value.
-        let wide_indices = vertices > usize::from(u16::MAX);
-        let component = if wide_indices {
+        // u16 indices while the largest index (n - 1) stays below the restart value.
+        let start = self.words.0.len();
+        let component = if n > usize::from(u16::MAX) {
+            self.words.0.extend_from_slice(&draw.indices);
             ComponentType::U32
         } else {
+            // Two u16 per word, the first in the low half (little-endian byte order).
+            self.words.0.extend(
+                draw.indices
+                    .chunks(2)
+                    .map(|pair| pair[0] | pair.get(1).map_or(0, |&b| b << 16)),
+            );
             ComponentType::U16
         };
-        let (index_accessor, index_start) =
-            self.accessor(indices, component, Type::Scalar, ElementArrayBuffer);
-        let primitive = json::mesh::Primitive {
+        let indices = self.accessor(
+            start,
+            draw.indices.len(),
+            component,
+            Type::Scalar,
+            ElementArrayBuffer,
+        );
+        json::mesh::Primitive {
             attributes,
             extensions: Default::default(),
             extras: Default::default(),
-            indices: Some(index_accessor),
-            material: None,
-            mode: Checked::Valid(mode),
+            indices: Some(indices),
+            material: draw
+                .material
+                .and_then(|m| material_indices.get(m as usize).copied()),
+            mode: Checked::Valid(draw.mode),
             targets: None,
-        };
-        let plan = Plan {
-            position_accessor,
-            position,
-            normal,
-            scalars,
-            indices: index_start,
-            wide_indices,
-        };
-        (primitive, plan)
+        }
     }
+}
 
-    fn set_bounds(&mut self, accessor: Index<json::Accessor>, min: [f32; 3], max: [f32; 3]) {
-        let to_value = |v: [f32; 3]| json::Value::from(v.map(f64::from).to_vec());
-        let accessor = &mut self.root.accessors[accessor.value()];
-        accessor.min = Some(to_value(min));
-        accessor.max = Some(to_value(max));
-    }
+/// glTF is +Y up (spec §3.4): the kernel's Z-up (x, y, z) is written as
+/// (x, z, −y), exactly (a swap and a negation).
+fn turn_y_up(p: [f64; 3]) -> [f64; 3] {
+    [p[0], p[2], -p[1] + 0.0]
+}
+
+fn turn_normal(n: [f32; 3]) -> [f32; 3] {
+    [n[0], n[2], -n[1] + 0.0]
 }
 
 /// Running min/max of written positions.
@@ -226,88 +416,41 @@ impl Bounds {
     }
 }
 
-/// Flat-shaded surface: every polygon's corners duplicated with the polygon normal.
-pub(super) fn fill_surface(
-    words: &mut Words,
-    plan: &Plan,
-    mesh: &IndexedMesh,
-    scalars: &[(&str, &[f64])],
-) -> Bounds {
-    let mut bounds = Bounds::new();
-    let mut tri = PolygonTriangulator::default();
-    let normal_at = plan.normal.unwrap_or_default();
-    let (mut v, mut k) = (0usize, 0usize);
-    for poly in mesh.polygons() {
-        let normal = unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z));
-        let base = v as u32;
-        for &i in poly {
-            let p = to_f32(mesh.positions[i as usize]);
-            bounds.add(p);
-            words.vec3(plan.position + 3 * v, p);
-            words.vec3(normal_at + 3 * v, normal);
-            for (start, (_, values)) in plan.scalars.iter().zip(scalars) {
-                words.0[start + v] = (values[i as usize] as f32).to_bits();
-            }
-            v += 1;
-        }
-        for t in &tri.triangles {
-            for &corner in t {
-                words.index(plan, k, base + corner);
-                k += 1;
-            }
-        }
+/// The glTF form of a material (PBR metallic-roughness, §3.9.2).
+fn material_json(m: &Material) -> json::Material {
+    use json::material::{
+        AlphaCutoff, AlphaMode as Mode, EmissiveFactor, PbrBaseColorFactor, StrengthFactor,
+    };
+    let (alpha_mode, alpha_cutoff) = match m.alpha {
+        AlphaMode::Opaque => (Mode::Opaque, None),
+        AlphaMode::Mask(cutoff) => (Mode::Mask, Some(AlphaCutoff(cutoff as f32))),
+        AlphaMode::Blend => (Mode::Blend, None),
+    };
+    json::Material {
+        alpha_cutoff,
+        alpha_mode: Checked::Valid(alpha_mode),
+        double_sided: m.double_sided.unwrap_or(true),
+        name: Some(m.name.clone()),
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: PbrBaseColorFactor(m.base_color.map(|c| c as f32)),
+            metallic_factor: StrengthFactor(m.metallic as f32),
+            roughness_factor: StrengthFactor(m.roughness as f32),
+            ..Default::default()
+        },
+        emissive_factor: EmissiveFactor(m.emissive.map(|c| c as f32)),
+        ..Default::default()
     }
-    bounds
-}
-
-/// Wire edges: the vertices the lines use, numbered in first-use order.
-pub(super) fn fill_wire(
-    words: &mut Words,
-    plan: &Plan,
-    mesh: &IndexedMesh,
-    scalars: &[(&str, &[f64])],
-) -> Bounds {
-    let mut bounds = Bounds::new();
-    let mut remap = vec![u32::MAX; mesh.positions.len()];
-    let mut next = 0u32;
-    for (k, &v) in mesh.lines.iter().flatten().enumerate() {
-        let slot = &mut remap[v as usize];
-        if *slot == u32::MAX {
-            *slot = next;
-            let at = next as usize;
-            let p = to_f32(mesh.positions[v as usize]);
-            bounds.add(p);
-            words.vec3(plan.position + 3 * at, p);
-            for (start, (_, values)) in plan.scalars.iter().zip(scalars) {
-                words.0[start + at] = (values[v as usize] as f32).to_bits();
-            }
-            next += 1;
-        }
-        words.index(plan, k, *slot);
-    }
-    bounds
-}
-
-/// Number of distinct vertices the lines use.
-pub(super) fn wire_vertex_count(mesh: &IndexedMesh) -> usize {
-    let mut seen = vec![false; mesh.positions.len()];
-    mesh.lines
-        .iter()
-        .flatten()
-        .filter(|&&v| !std::mem::replace(&mut seen[v as usize], true))
-        .count()
 }
 
 /// Builds the document: (JSON bytes, binary buffer as little-endian words). With `embed`, the
 /// buffer is a data URI in the JSON and the returned buffer is empty.
+///
+/// One node and one mesh per part (named after it, in part order), one
+/// primitive per material the part uses plus one of its wire edges;
+/// vertices are shared within a primitive where position, normal, texture
+/// coordinates and colour agree.
 pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32>), IoError> {
-    use json::mesh::Mode;
     mesh.validate()?;
-    // glTF is +Y up (spec §3.4): the kernel's Z-up model is turned so that
-    // its height runs along +Y, exactly (a swap and a negation).
-    let mut turned = mesh.clone();
-    turned.z_up_to_y_up();
-    let mesh = &turned;
     mesh.check_f32_range("glTF")?;
     let scalars = mesh.sorted_scalars();
     for (name, values) in &scalars {
@@ -320,11 +463,7 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
             });
         }
     }
-    let names: Vec<&str> = scalars.iter().map(|(n, _)| *n).collect();
-    let too_big = |what: &str| IoError::InvalidMesh {
-        message: format!("{what} exceed glTF's u32 index range"),
-    };
-
+    let draws = plan_draws(mesh)?;
     let mut b = Builder {
         root: json::Root {
             asset: json::Asset {
@@ -333,62 +472,35 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
             },
             ..Default::default()
         },
-        words: 0,
+        words: Words(Vec::new()),
         custom: Vec::new(),
     };
-    let mut primitives = Vec::new();
-    let mut surface = None;
-    if mesh.polygon_count() > 0 {
-        let vertices = mesh.face_indices.len();
-        let indices = usize::try_from(mesh.triangle_count() * 3)
-            .ok()
-            .filter(|_| u32::try_from(vertices).is_ok())
-            .ok_or_else(|| too_big("flat-shaded vertices"))?;
-        let (primitive, plan) = b.primitive(vertices, indices, true, &names, Mode::Triangles);
-        primitives.push(primitive);
-        surface = Some(plan);
-    }
-    let mut wire = None;
-    if !mesh.lines.is_empty() {
-        let (primitive, plan) = b.primitive(
-            wire_vertex_count(mesh),
-            mesh.lines.len() * 2,
-            false,
-            &names,
-            Mode::Lines,
-        );
-        primitives.push(primitive);
-        wire = Some(plan);
-    }
-
-    // Zero-initialized (lazily mapped) words, filled in place: no intermediate arrays.
-    let mut bin = vec![0u32; b.words];
-    let mut words = Words(&mut bin);
-    if let Some(plan) = &surface {
-        let bounds = fill_surface(&mut words, plan, mesh, &scalars);
-        b.set_bounds(plan.position_accessor, bounds.min, bounds.max);
-    }
-    if let Some(plan) = &wire {
-        let bounds = fill_wire(&mut words, plan, mesh, &scalars);
-        b.set_bounds(plan.position_accessor, bounds.min, bounds.max);
-    }
-    // The words hold little-endian data; make that true in memory on big-endian hosts too.
-    for w in &mut bin {
-        *w = w.to_le();
-    }
-    let bytes: &[u8] = bytemuck::cast_slice(&bin);
-
+    // Every material is written, in index order, used or not.
+    let material_indices: Vec<Index<json::Material>> = mesh
+        .materials
+        .iter()
+        .map(|m| b.root.push(material_json(m)))
+        .collect();
     let mut scene_nodes = Vec::new();
-    if !primitives.is_empty() {
+    for (part, part_draws) in draws.iter().enumerate() {
+        if part_draws.is_empty() {
+            continue;
+        }
+        let primitives = part_draws
+            .iter()
+            .map(|d| b.primitive(mesh, d, &scalars, &material_indices))
+            .collect();
+        let name = mesh.parts.get(part).cloned();
         let mesh_index = b.root.push(json::Mesh {
             extensions: Default::default(),
             extras: Default::default(),
-            name: None,
+            name: name.clone(),
             primitives,
             weights: None,
         });
         scene_nodes.push(b.root.push(json::Node {
             mesh: Some(mesh_index),
+            name,
             ..Default::default()
         }));
     }
@@ -399,6 +511,12 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
         nodes: scene_nodes,
     });
     b.root.scene = Some(scene);
+    let mut bin = std::mem::take(&mut b.words.0);
+    // The words hold little-endian data; make that true in memory on big-endian hosts too.
+    for w in &mut bin {
+        *w = w.to_le();
+    }
+    let bytes: &[u8] = bytemuck::cast_slice(&bin);
     if !bytes.is_empty() {
         b.root.push(json::Buffer {
             byte_length: USize64(bytes.len() as u64),

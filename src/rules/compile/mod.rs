@@ -15,11 +15,12 @@ use super::diagnostic::{content_span, RuleError, SourceFile};
 use super::expr::{Expr, ExprError, BUILTIN_CONSTANT_NAMES};
 use super::operators::{self, ArgKind, Default, Family, OpId, OperatorDef, ParamDef};
 use super::program::{
-    Arg, Call, Command, CommandKind, Compound, Condition, FrameParams, OnIntersection, Op, Param,
-    ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
+    Arg, Call, Command, CommandKind, Compound, Condition, FrameParams, Look, OnIntersection, Op,
+    Param, ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
 };
 use super::random::stream_key;
 
+mod look;
 mod nurbs;
 mod sdf;
 use super::spanned::{SourceFormat, Spanned};
@@ -615,6 +616,8 @@ pub fn compile(
         next_rule_instance: 0,
         may_cancel: false,
         bodies: FxHashMap::default(),
+        look: compiler.compile_look(ast)?,
+        tags_looks: false,
     };
     check_unrolled_size(&compiler, ast)?;
     let mut steps: Vec<Step> = Vec::new();
@@ -642,6 +645,8 @@ pub fn compile(
     expander.expand(&ast.steps, "", &mut steps, None)?;
     let uses_graph = expander.uses_graph;
     let may_cancel = expander.may_cancel;
+    let tags_looks = expander.tags_looks;
+    let mut expander_look = expander.look;
     let step_count = expander.next_uid as usize;
     let mut compounds = Vec::with_capacity(expander.compounds.len());
     for (i, compound) in expander.compounds.into_iter().enumerate() {
@@ -664,8 +669,11 @@ pub fn compile(
                     next_rule_instance: 0,
                     may_cancel: false,
                     bodies: FxHashMap::default(),
+                    look: std::mem::take(&mut expander_look),
+                    tags_looks: false,
                 };
                 check.compile_compound(i, None)?;
+                expander_look = check.look;
                 compounds.push(Compound {
                     name: ast.compound.0[i].0.value.clone(),
                     domain: Domain::Face,
@@ -700,6 +708,8 @@ pub fn compile(
         resources: compiler.resources.take(),
         sdf: compiler.trees.take().forest,
         nurbs: surfaces,
+        look: expander_look,
+        tags_looks,
     })
 }
 
@@ -1033,6 +1043,10 @@ struct Expander<'c, 'a> {
     /// Compiled bodies by written step (looked up only, never iterated):
     /// copies of a step share one.
     bodies: FxHashMap<*const ast::Step, Arc<StepBody>>,
+    /// Parts and materials; steps add the parts they name.
+    look: Look,
+    /// Whether a step names a part or material.
+    tags_looks: bool,
 }
 
 /// Deepest nesting of rule inclusions and compound commands (a rule that
@@ -1488,12 +1502,26 @@ impl Expander<'_, '_> {
         self.check_preceding_edge(&op, op_span.clone(), &op_key.value)?;
         let location = c.location(op_span.as_ref());
         let policy = self.step_policy(step, &op, &op_key.value)?;
+        let part = match &step.part {
+            Some(name) => {
+                c.check_name(name, "part")?;
+                Some(self.look.part_index(&name.value))
+            }
+            None => None,
+        };
+        let material = match &step.material {
+            Some(name) => Some(c.material_reference(&self.look, name)?),
+            None => None,
+        };
+        self.tags_looks |= part.is_some() || material.is_some();
         Ok(StepBody {
             location,
             domain,
             select,
             op,
             policy,
+            part,
+            material,
         })
     }
 

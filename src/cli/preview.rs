@@ -1,0 +1,122 @@
+//! `graftal preview`: a shaded PNG of a mesh file or of what a rule file
+//! makes (issue 16), and the thumbnails of `run --contact-sheet`. The
+//! picture comes from [`crate::preview`]'s software rasterizer: the same
+//! bytes on every machine.
+
+use std::path::{Path, PathBuf};
+
+use super::{files, Failure, InputArgs};
+use crate::grammar::{self, RunOptions};
+use crate::preview::{self, Image, Options, Projection, SceneData, View};
+use crate::rules::Override;
+
+/// `--view`: one of the renderer's view names.
+fn parse_view(text: &str) -> Result<View, String> {
+    View::ALL
+        .into_iter()
+        .find(|v| v.name() == text)
+        .ok_or_else(|| {
+            let names: Vec<&str> = View::ALL.iter().map(|v| v.name()).collect();
+            format!("unknown view `{text}` (one of {})", names.join(", "))
+        })
+}
+
+/// How previews and thumbnails are drawn.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LookArgs {
+    /// Camera direction: iso (three-quarter from front-right-above),
+    /// front (from −Y), back, left, right, top (from +Z), bottom.
+    #[arg(long, default_value = "iso", value_parser = parse_view)]
+    pub view: View,
+    /// Perspective (35° field of view) instead of orthographic.
+    #[arg(long)]
+    pub perspective: bool,
+    /// Image width and height in pixels (1 to 8192).
+    #[arg(long, default_value_t = 512, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(1..=8192))]
+    pub size: u32,
+}
+
+impl LookArgs {
+    pub(crate) fn options(&self, size: u32) -> Options {
+        Options {
+            width: size,
+            height: size,
+            view: self.view,
+            projection: if self.perspective {
+                Projection::Perspective
+            } else {
+                Projection::Orthographic
+            },
+            edges: true,
+            ..Options::default()
+        }
+    }
+}
+
+#[derive(clap::Args, Debug)]
+pub struct PreviewArgs {
+    /// A mesh file (OBJ, STL, PLY, glTF, GLB), or a rule file (.toml,
+    /// .ron), which is run first.
+    pub input: PathBuf,
+    /// The PNG to write.
+    #[arg(short, long, value_name = "OUT.png")]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub look: LookArgs,
+    /// Seed of the rule file's run.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    #[arg(long = "set", value_name = "NAME=VALUE", value_parser = super::parse_override)]
+    pub overrides: Vec<Override>,
+    #[arg(long, default_value_t = crate::grammar::DEFAULT_MAX_ELEMENTS, value_name = "N")]
+    pub max_primitives: usize,
+    #[command(flatten)]
+    pub input_args: InputArgs,
+}
+
+/// Renders `mesh` (Z-up) as a PNG's pixels.
+pub(crate) fn render(mesh: &crate::geom::IndexedMesh, options: &Options) -> Result<Image, String> {
+    let data = SceneData::new(mesh);
+    preview::render(&data.scene(), options).map_err(|e| e.to_string())
+}
+
+pub fn run(args: &PreviewArgs) -> Result<(), Failure> {
+    if !has_extension(&args.output, "png") {
+        return Err(Failure::Input(format!(
+            "{}: a preview is a PNG; name the output *.png",
+            args.output.display()
+        )));
+    }
+    let is_rules = has_extension(&args.input, "toml") || has_extension(&args.input, "ron");
+    let mesh = if is_rules {
+        let program = files::compile_rules(&args.input, &args.overrides)?;
+        let inputs = files::load_inputs(&program, args.input_args.policy())?;
+        let options = RunOptions {
+            seed: args.seed,
+            max_elements: args.max_primitives,
+            inputs: inputs.meshes,
+            ..RunOptions::default()
+        };
+        let result = grammar::run(&program, &options)
+            .map_err(|e| Failure::Limit(super::run_exit_code(e.kind), e.to_string()))?;
+        grammar::export(&program, &result.mesh)
+    } else {
+        if args.seed.is_some() || !args.overrides.is_empty() {
+            return Err(Failure::Input(
+                "--seed and --set apply to rule files, not to mesh files".into(),
+            ));
+        }
+        args.input_args.read_mesh(&args.input)?
+    };
+    let image = render(&mesh, &args.look.options(args.look.size))
+        .map_err(|e| Failure::Runtime(format!("{}: {e}", args.input.display())))?;
+    let png = preview::encode_png(&image).map_err(|e| Failure::Runtime(e.to_string()))?;
+    files::write_atomic(&args.output, &png)
+        .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", args.output.display())))
+}
+
+fn has_extension(path: &Path, ext: &str) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext))
+}

@@ -1,0 +1,197 @@
+//! From a grown model to an asset (issue 16): the part and material every
+//! face carries (kernel face layers, inherited through the operators'
+//! attribute copies), and the export that turns the kernel mesh into the
+//! writers' [`IndexedMesh`] with named parts, materials, shading normals
+//! and texture coordinates.
+
+use crate::geom::material::Material;
+use crate::geom::uv::UvMapping;
+use crate::geom::{normals, uv, IndexedMesh};
+use crate::kernel::attrs::AttrValue;
+use crate::kernel::ops::Selection;
+use crate::kernel::{Domain, Mesh};
+use crate::rules::program::{Program, MATERIAL_LAYER, NO_MATERIAL, PART_LAYER};
+
+/// Adds the part and material layers (part 0, no material).
+pub(super) fn ensure_layers(mesh: &mut Mesh) {
+    for (name, domain, default) in [
+        (PART_LAYER, Domain::Face, AttrValue::Int(0)),
+        (PART_LAYER, Domain::Edge, AttrValue::Int(0)),
+        (MATERIAL_LAYER, Domain::Face, AttrValue::Int(NO_MATERIAL)),
+    ] {
+        let _ = mesh.add_layer(name, domain, default);
+    }
+}
+
+/// Gives a step's products its part and material (`looks`), where set.
+pub(super) fn tag(mesh: &mut Mesh, made: &Selection, looks: (Option<u32>, Option<u32>)) {
+    if let Some(part) = looks.0 {
+        let part = AttrValue::Int(i64::from(part));
+        for f in &made.faces {
+            let _ = mesh.set_attr(PART_LAYER, Domain::Face, f.index(), part);
+        }
+        for e in &made.edges {
+            let _ = mesh.set_attr(PART_LAYER, Domain::Edge, e.index(), part);
+        }
+    }
+    if let Some(material) = looks.1 {
+        let material = AttrValue::Int(i64::from(material));
+        for f in &made.faces {
+            let _ = mesh.set_attr(MATERIAL_LAYER, Domain::Face, f.index(), material);
+        }
+    }
+}
+
+/// The model as the writers take it: the kernel's canonical indexed view
+/// with the parts that hold geometry (in the program's part order), the
+/// materials they use (the program's order, graftal's fallback last),
+/// shading normals where a part asks for them, texture coordinates where
+/// a part has a projection, and double-sidedness decided.
+pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
+    let mut out = mesh.to_indexed();
+    let look = &program.look;
+    let (face_parts, line_parts) = element_parts(program, mesh);
+    if face_parts.is_empty() && line_parts.is_empty() {
+        return out;
+    }
+
+    // Parts with geometry, renumbered in the program's order.
+    let mut used = vec![false; look.parts.len().max(1)];
+    for &p in face_parts.iter().chain(&line_parts) {
+        used[p] = true;
+    }
+    let (kept, part_index) = renumber(&used);
+    let name_of = |p: usize| {
+        look.parts
+            .get(p)
+            .map_or_else(|| "model".to_owned(), |part| part.name.clone())
+    };
+    out.parts = kept.iter().map(|&p| name_of(p)).collect();
+    out.polygon_parts = face_parts.iter().map(|&p| part_index[p]).collect();
+    out.line_parts = line_parts.iter().map(|&p| part_index[p]).collect();
+    if face_parts.is_empty() {
+        return out;
+    }
+
+    // Materials: the step's, else the part's, else the fallback.
+    let fallback = look.materials.len();
+    let face_materials: Vec<usize> = mesh
+        .face_ids()
+        .zip(&face_parts)
+        .map(|(f, &p)| {
+            let own = int_attr(mesh, MATERIAL_LAYER, Domain::Face, f.index(), NO_MATERIAL);
+            usize::try_from(own)
+                .ok()
+                .filter(|&m| m < look.materials.len())
+                .or_else(|| {
+                    look.parts
+                        .get(p)
+                        .and_then(|part| part.material)
+                        .map(|m| m as usize)
+                })
+                .unwrap_or(fallback)
+        })
+        .collect();
+    let mut used = vec![false; fallback + 1];
+    for &m in &face_materials {
+        used[m] = true;
+    }
+    let (kept_materials, material_index) = renumber(&used);
+    out.materials = kept_materials
+        .iter()
+        .map(|&m| {
+            look.materials
+                .get(m)
+                .cloned()
+                .unwrap_or_else(Material::fallback)
+        })
+        .collect();
+    out.polygon_materials = face_materials.iter().map(|&m| material_index[m]).collect();
+
+    // Per out-part settings.
+    let setting = |k: &usize| look.parts.get(*k);
+    let creases: Vec<f64> = kept
+        .iter()
+        .map(|k| setting(k).map_or(0.0, |p| p.crease))
+        .collect();
+    if creases.iter().any(|&c| c > 0.0) {
+        out.corner_normals = normals::mesh_corner_normals(&out, &creases);
+    }
+    let mappings: Vec<Option<UvMapping>> =
+        kept.iter().map(|k| setting(k).and_then(|p| p.uv)).collect();
+    if mappings.iter().any(Option::is_some) {
+        out.corner_uvs = uv::project(&out, &mappings);
+    }
+    out.decide_double_sided();
+    out
+}
+
+/// An element's value in an integer layer, `default` without the layer.
+fn int_attr(mesh: &Mesh, name: &str, domain: Domain, index: usize, default: i64) -> i64 {
+    match mesh.attr(name, domain, index) {
+        Some(AttrValue::Int(v)) => v,
+        _ => default,
+    }
+}
+
+/// The part (index into the program's parts) of every face and of every
+/// wire edge, in the kernel's canonical export order.
+fn element_parts(program: &Program, mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
+    let parts = program.look.parts.len();
+    let part_of = |v: i64| usize::try_from(v).ok().filter(|&p| p < parts).unwrap_or(0);
+    let faces = mesh
+        .face_ids()
+        .map(|f| part_of(int_attr(mesh, PART_LAYER, Domain::Face, f.index(), 0)))
+        .collect();
+    let lines = mesh
+        .edge_ids()
+        .filter(|&e| mesh.is_wire_edge(e))
+        .map(|e| part_of(int_attr(mesh, PART_LAYER, Domain::Edge, e.index(), 0)))
+        .collect();
+    (faces, lines)
+}
+
+/// How many faces and wire edges one part holds.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PartCount {
+    pub name: String,
+    pub faces: usize,
+    pub wire_edges: usize,
+}
+
+/// Element counts of the parts that hold any, in the program's part
+/// order (the stats' `parts`).
+pub fn part_counts(program: &Program, mesh: &Mesh) -> Vec<PartCount> {
+    let (faces, lines) = element_parts(program, mesh);
+    let mut counts: Vec<PartCount> = (0..program.look.parts.len().max(1))
+        .map(|p| PartCount {
+            name: program
+                .look
+                .parts
+                .get(p)
+                .map_or_else(|| "model".to_owned(), |part| part.name.clone()),
+            faces: 0,
+            wire_edges: 0,
+        })
+        .collect();
+    for p in faces {
+        counts[p].faces += 1;
+    }
+    for p in lines {
+        counts[p].wire_edges += 1;
+    }
+    counts.retain(|c| c.faces + c.wire_edges > 0);
+    counts
+}
+
+/// The indices marked `used`, in order, and each index's new number
+/// (`u32::MAX` for unused ones).
+fn renumber(used: &[bool]) -> (Vec<usize>, Vec<u32>) {
+    let mut kept = Vec::new();
+    let mut index = vec![u32::MAX; used.len()];
+    for (i, _) in used.iter().enumerate().filter(|(_, &u)| u) {
+        index[i] = kept.len() as u32;
+        kept.push(i);
+    }
+    (kept, index)
+}
