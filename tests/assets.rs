@@ -312,3 +312,73 @@ fn previews_are_deterministic_pngs_of_rule_and_mesh_files() {
     }
     assert!(!d.join("x.png").exists() && !d.join("x.jpg").exists());
 }
+
+#[test]
+fn colour_expressions_paint_faces_and_survive_ply_and_gltf() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Bottom red (hue 0), top cyan-ish (hue 0.5): by the face centre's height.
+    let rules = r#"
+color = { hsv = ["(center.z > 0) * 0.5", 1, 1] }
+[start]
+cube = { size = 2 }
+"#;
+    run_in(d, rules, "c.glb");
+    let json = glb_json(&d.join("c.glb"));
+    let primitive = &json["meshes"][0]["primitives"][0];
+    assert!(primitive["attributes"]["COLOR_0"].is_number());
+    // The fallback material turns white so COLOR_0 shows as computed.
+    let base = &json["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"];
+    assert_eq!(base[0], 1.0);
+    let mesh = read_mesh(&d.join("c.glb"));
+    let top = (0..mesh.polygon_count())
+        .find(|&k| {
+            mesh.polygon(k)
+                .iter()
+                .all(|&v| mesh.positions[v as usize][2] > 0.0)
+        })
+        .unwrap();
+    let c = mesh.corner_colors[mesh.face_starts[top] as usize];
+    assert!(
+        c[0] < 1e-6 && (c[1] - 1.0).abs() < 1e-6 && (c[2] - 1.0).abs() < 1e-6,
+        "{c:?}"
+    );
+    {
+        let (to, back) = ("c.ply", "d.glb");
+        assert!(graftal_in(d, &["convert", "c.glb", to]).status.success());
+        assert!(graftal_in(d, &["convert", to, back]).status.success());
+        let again = read_mesh(&d.join(back));
+        // PLY stores sRGB bytes: equal within a byte's step.
+        let mut original: Vec<[u32; 3]> = mesh
+            .corner_colors
+            .iter()
+            .map(|c| c.map(|x| (graftal::geom::material::linear_to_srgb(x) * 255.0).round() as u32))
+            .collect();
+        let mut read: Vec<[u32; 3]> = again
+            .corner_colors
+            .iter()
+            .map(|c| c.map(|x| (graftal::geom::material::linear_to_srgb(x) * 255.0).round() as u32))
+            .collect();
+        original.sort();
+        read.sort();
+        assert_eq!(original, read);
+    }
+    assert_located_error(
+        d,
+        "color = { hsl = [0, 1, 1] }\n[start]\ncube = {}\n",
+        "rules.toml:1:11",
+        "unknown field `hsl` of color",
+    );
+    assert_located_error(
+        d,
+        "color = { rgb = [0, 1] }\n[start]\ncube = {}\n",
+        "rules.toml:1:17",
+        "3 channels",
+    );
+    assert_located_error(
+        d,
+        "color = { rgb = [\"lenght\", 1, 1] }\n[start]\ncube = {}\n",
+        "rules.toml:1:19",
+        "lenght",
+    );
+}

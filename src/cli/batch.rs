@@ -374,6 +374,14 @@ pub struct RunArgs {
     /// Print a machine-readable summary of the batch on standard output.
     #[arg(long)]
     pub json: bool,
+    /// Also write a PNG contact sheet: a shaded thumbnail of every
+    /// variant (three-quarter view), labelled with its seed and grid
+    /// values, in variant order.
+    #[arg(long, value_name = "SHEET.png")]
+    pub contact_sheet: Option<PathBuf>,
+    /// Thumbnail width and height on the contact sheet, in pixels.
+    #[arg(long, default_value_t = 192, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(32..=1024))]
+    pub thumbnail_size: u32,
     #[command(flatten)]
     pub write: super::WriteArgs,
     #[command(flatten)]
@@ -427,6 +435,8 @@ struct Produced {
     vertices: usize,
     /// Warnings of the run (the batch prints each once).
     warnings: Vec<String>,
+    /// Its contact-sheet thumbnail, when a sheet is wanted.
+    thumbnail: Option<crate::preview::Image>,
 }
 
 pub fn run(args: RunArgs) -> Result<(), Failure> {
@@ -554,6 +564,9 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         }
     };
     check_distinct_paths(&variants, manifest_path.as_deref(), &stats_sink)?;
+    if let Some(sheet) = &args.contact_sheet {
+        check_contact_sheet(sheet, variants.len(), args.thumbnail_size)?;
+    }
     // A batch's own files are written last: find out now whether they can
     // be, so that a bad path fails before any variant is written.
     if batch {
@@ -676,6 +689,10 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
                     .map_err(|e| cannot(path, e))?,
             }
         }
+        if let Some(path) = &args.contact_sheet {
+            let png = contact_sheet(&args, &variants, &produced)?;
+            staged.stage(path, &png).map_err(|e| cannot(path, e))?;
+        }
         let mut print_manifest = None;
         if let Some((path, m)) = &manifest {
             if path.as_os_str() == "-" {
@@ -703,6 +720,11 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         return Ok(());
     }
 
+    if let Some(path) = &args.contact_sheet {
+        let png = contact_sheet(&args, &variants, &produced)?;
+        files::write_atomic(path, &png)
+            .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))?;
+    }
     if let Some((path, m)) = &manifest {
         manifest::write(path, m)?;
     }
@@ -990,6 +1012,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
             faces: 0,
             vertices: 0,
             warnings: Vec::new(),
+            thumbnail: None,
         }
     };
     let options = RunOptions {
@@ -1015,6 +1038,19 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         }
     };
     let indexed = grammar::export(program, &result.mesh);
+    let thumbnail = match args.contact_sheet.is_some().then(|| {
+        let options = crate::preview::Options {
+            width: args.thumbnail_size,
+            height: args.thumbnail_size,
+            edges: true,
+            ..crate::preview::Options::default()
+        };
+        super::preview::render(&indexed, &options)
+    }) {
+        Some(Err(m)) => return fail(entry, "failed", EXIT_RUNTIME, format!("thumbnail: {m}")),
+        Some(Ok(image)) => Some(image),
+        None => None,
+    };
     let encoded = match super::encode_for(&indexed, v.format, &args.write, &v.output) {
         Ok(encoded) => encoded,
         Err(m) => return fail(entry, "failed", EXIT_RUNTIME, m),
@@ -1081,7 +1117,73 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         faces: mesh.face_count(),
         vertices: mesh.vert_count(),
         warnings: result.warnings.clone(),
+        thumbnail,
     }
+}
+
+/// Columns of a contact sheet of `tiles` thumbnails: near square, at
+/// most 8.
+fn sheet_columns(tiles: usize) -> u32 {
+    ((tiles as f64).sqrt().ceil() as u32).clamp(1, 8)
+}
+
+/// Refuses, before anything runs, a contact sheet that is not a PNG or
+/// would exceed the renderer's size limit.
+fn check_contact_sheet(path: &Path, tiles: usize, size: u32) -> Result<(), Failure> {
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        return Err(Failure::Input(format!(
+            "--contact-sheet {}: a contact sheet is a PNG; name it *.png",
+            path.display()
+        )));
+    }
+    let columns = u64::from(sheet_columns(tiles));
+    let rows = (tiles as u64).div_ceil(columns);
+    let cell = u64::from(size + crate::preview::SHEET_PADDING);
+    let pixels = columns * cell * rows * (cell + u64::from(crate::preview::LABEL_HEIGHT));
+    if pixels > crate::preview::MAX_SHEET_PIXELS {
+        return Err(Failure::Input(format!(
+            "--contact-sheet: {tiles} thumbnails of {size} pixels make a sheet of {pixels} pixels, more than {}; use fewer variants or a smaller --thumbnail-size",
+            crate::preview::MAX_SHEET_PIXELS
+        )));
+    }
+    Ok(())
+}
+
+/// The contact sheet's PNG: one labelled thumbnail per variant, in
+/// variant order (a failed variant's tile is blank, labelled "failed").
+fn contact_sheet(
+    args: &RunArgs,
+    variants: &[Variant],
+    produced: &[Option<Produced>],
+) -> Result<Vec<u8>, Failure> {
+    let size = args.thumbnail_size;
+    let blank = crate::preview::Image {
+        width: size,
+        height: size,
+        rgba: vec![255; size as usize * size as usize * 4],
+    };
+    let tiles: Vec<(crate::preview::Image, String)> = variants
+        .iter()
+        .zip(produced)
+        .map(|(v, p)| {
+            let mut label = format!("seed {}", v.seed);
+            for axis in &args.grid {
+                if let Some((_, value)) = v.params.iter().find(|(n, _)| *n == axis.name) {
+                    label.push_str(&format!(" {}={value}", axis.name));
+                }
+            }
+            match p.as_ref().and_then(|p| p.thumbnail.clone()) {
+                Some(image) => (image, label),
+                None => (blank.clone(), format!("{label} failed")),
+            }
+        })
+        .collect();
+    let sheet = crate::preview::contact_sheet(&tiles, sheet_columns(tiles.len()))
+        .map_err(|e| Failure::Runtime(format!("contact sheet: {e}")))?;
+    crate::preview::encode_png(&sheet).map_err(|e| Failure::Runtime(e.to_string()))
 }
 
 /// Lowercase hexadecimal.

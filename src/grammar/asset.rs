@@ -10,7 +10,7 @@ use crate::geom::{normals, uv, IndexedMesh};
 use crate::kernel::attrs::AttrValue;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, Mesh};
-use crate::rules::program::{Program, MATERIAL_LAYER, NO_MATERIAL, PART_LAYER};
+use crate::rules::program::{Program, COLOR_LAYER, MATERIAL_LAYER, NO_MATERIAL, PART_LAYER};
 
 /// Adds the part and material layers (part 0, no material).
 pub(super) fn ensure_layers(mesh: &mut Mesh) {
@@ -121,6 +121,27 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
         kept.iter().map(|k| setting(k).and_then(|p| p.uv)).collect();
     if mappings.iter().any(Option::is_some) {
         out.corner_uvs = uv::project(&out, &mappings);
+    }
+    if let Some(layer) = mesh.attributes().layer(COLOR_LAYER, Domain::Face) {
+        let mut colors = Vec::with_capacity(out.face_indices.len());
+        for (k, f) in mesh.face_ids().enumerate() {
+            let c = match layer.get(f.index()) {
+                AttrValue::Vector(c) => c.to_array().map(|x| x.clamp(0.0, 1.0)),
+                _ => [1.0; 3],
+            };
+            let corners = out.face_starts[k + 1] - out.face_starts[k];
+            colors.extend(std::iter::repeat_n(c, corners as usize));
+        }
+        out.corner_colors = colors;
+        // COLOR_0 multiplies the base colour: the fallback turns white so
+        // the colours show as computed.
+        for m in out
+            .materials
+            .iter_mut()
+            .filter(|m| m.name == Material::fallback().name)
+        {
+            m.base_color = [1.0; 4];
+        }
     }
     out.decide_double_sided();
     out

@@ -16,6 +16,8 @@ use super::intersect::Guard;
 use super::merge::Merger;
 use super::operators;
 use super::surfaces::SurfaceStats;
+use crate::geom::material::srgb_to_linear;
+use crate::kernel::attrs::AttrValue;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
@@ -24,6 +26,7 @@ use crate::rules::program::{
     Call, Command, CommandKind, Compound, Condition, FrameParams, OnIntersection, Op, ParamKind,
     Policy, Program, Step,
 };
+use crate::rules::program::{COLOR_LAYER, PART_LAYER};
 use crate::rules::random;
 
 use super::commands::{self, CommandError, Plan};
@@ -207,6 +210,7 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
     runner
         .run_steps(&mut mesh, &program.steps, true)
         .map_err(Stop::into_error)?;
+    runner.paint(&mut mesh);
     let params = runner.param_values();
     Ok(RunOutput {
         mesh,
@@ -751,6 +755,71 @@ impl Runner<'_> {
         c.expr.eval_with(&mut source)
     }
 
+    /// Evaluates each face's part's colour expression on the finished
+    /// model into the colour layer (issue 16; nothing when no part has
+    /// one). Channels are clamped into [0, 1] (hue wraps) and read as
+    /// sRGB; the layer holds linear RGB, as glTF's COLOR_0 does.
+    fn paint(&mut self, mesh: &mut Mesh) {
+        let look = &self.program.look;
+        if look.colors.is_empty() {
+            return;
+        }
+        let stream = random::stream_key("color");
+        let generation = self.program.step_count as u32 + 1;
+        let base = self.program.param_names.len();
+        let faces: Vec<FaceId> = mesh.face_ids().collect();
+        let mut painted = Vec::with_capacity(faces.len());
+        for &f in &faces {
+            let part = match mesh.attr(PART_LAYER, Domain::Face, f.index()) {
+                Some(AttrValue::Int(p)) => usize::try_from(p).unwrap_or(0),
+                _ => 0,
+            };
+            let Some(spec) = look
+                .parts
+                .get(part)
+                .and_then(|p| p.color)
+                .map(|c| &look.colors[c as usize])
+            else {
+                painted.push(None);
+                continue;
+            };
+            let ctx = Context {
+                mesh,
+                scope: None,
+                seed: self.seed,
+                stream,
+                generation,
+            };
+            let mut source = LazyProperties {
+                params: &self.slots[..base],
+                ctx: &ctx,
+                domain: Domain::Face,
+                index: f.index(),
+                values: [0.0; PROPERTY_SLOTS],
+                known: 0,
+            };
+            let [a, b, c] = [0, 1, 2].map(|k| spec.channels[k].expr.eval_with(&mut source));
+            self.evaluations += 3;
+            let srgb = if spec.hsv {
+                hsv_to_rgb(a, b, c)
+            } else {
+                [a, b, c].map(unit)
+            };
+            painted.push(Some(DVec3::from_array(srgb.map(srgb_to_linear))));
+        }
+        let _ = mesh.add_layer(COLOR_LAYER, Domain::Face, AttrValue::Vector(DVec3::ONE));
+        for (f, color) in faces.into_iter().zip(painted) {
+            if let Some(color) = color {
+                let _ = mesh.set_attr(
+                    COLOR_LAYER,
+                    Domain::Face,
+                    f.index(),
+                    AttrValue::Vector(color),
+                );
+            }
+        }
+    }
+
     /// Candidates in ascending id order.
     fn candidates(&self, mesh: &Mesh, step: &Step) -> Vec<usize> {
         let alive = |i: usize| match step.domain {
@@ -1111,5 +1180,46 @@ impl SlotSource for LazyProperties<'_> {
             self.known |= 1 << k;
         }
         self.values[k]
+    }
+}
+
+/// `x` clamped into [0, 1]; NaN → 0.
+fn unit(x: f64) -> f64 {
+    if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(0.0, 1.0)
+    }
+}
+
+/// HSV (hue in turns, wrapping; saturation and value clamped) to RGB.
+fn hsv_to_rgb(h: f64, s: f64, v: f64) -> [f64; 3] {
+    let h = if h.is_finite() { h - h.floor() } else { 0.0 };
+    let (s, v) = (unit(s), unit(v));
+    let sector = h * 6.0;
+    let i = (sector.floor() as usize).min(5);
+    let f = sector - i as f64;
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    match i {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    }
+}
+
+#[cfg(test)]
+mod color_tests {
+    use super::hsv_to_rgb;
+
+    #[test]
+    fn hsv_primaries_and_wrap() {
+        assert_eq!(hsv_to_rgb(0.0, 1.0, 1.0), [1.0, 0.0, 0.0]);
+        assert_eq!(hsv_to_rgb(1.0 / 3.0, 1.0, 1.0)[1], 1.0);
+        assert_eq!(hsv_to_rgb(2.0 / 3.0, 1.0, 1.0)[2], 1.0);
+        assert_eq!(hsv_to_rgb(1.25, 0.0, 0.5), [0.5; 3]);
+        assert_eq!(hsv_to_rgb(f64::NAN, 2.0, -1.0), [0.0; 3]);
     }
 }

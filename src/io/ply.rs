@@ -21,7 +21,7 @@ use std::path::Path;
 
 use super::{push_f64, push_u64, IoError};
 use crate::geom::indexed::IndexedMesh;
-use crate::geom::material::sanitize_name;
+use crate::geom::material::{linear_to_srgb, sanitize_name, srgb_to_linear};
 
 /// Most parts a PLY file's `part` property may number (a part becomes a
 /// node or group in other formats).
@@ -83,6 +83,10 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
     if parts {
         out.extend_from_slice(b"property int part\n");
     }
+    let colors = face_colors(mesh);
+    if !colors.is_empty() {
+        out.extend_from_slice(b"property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
     if !mesh.lines.is_empty() {
         out.extend_from_slice(b"element edge ");
         push_u64(&mut out, mesh.lines.len() as u64);
@@ -114,6 +118,10 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                 if parts {
                     out.push(b' ');
                     push_u64(&mut out, u64::from(mesh.polygon_part(k)));
+                }
+                for &c in colors.get(k).into_iter().flatten() {
+                    out.push(b' ');
+                    push_u64(&mut out, u64::from(c));
                 }
                 out.push(b'\n');
             }
@@ -149,6 +157,9 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                 if parts {
                     out.extend_from_slice(&(mesh.polygon_part(k) as i32).to_le_bytes());
                 }
+                if let Some(c) = colors.get(k) {
+                    out.extend_from_slice(c);
+                }
             }
             for (k, line) in mesh.lines.iter().enumerate() {
                 for &i in line {
@@ -161,6 +172,20 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
         }
     }
     Ok(out)
+}
+
+/// Each polygon's colour as sRGB bytes (its first corner's: graftal's
+/// colours are per face), or nothing when the mesh has no colours.
+fn face_colors(mesh: &IndexedMesh) -> Vec<[u8; 3]> {
+    if mesh.corner_colors.is_empty() {
+        return Vec::new();
+    }
+    (0..mesh.polygon_count())
+        .map(|k| {
+            let c = mesh.corner_colors[mesh.face_starts[k] as usize];
+            c.map(|x| (linear_to_srgb(x) * 255.0).round().clamp(0.0, 255.0) as u8)
+        })
+        .collect()
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -489,6 +514,8 @@ enum Role {
     FaceIndices,
     EdgeEnd(usize),
     Part,
+    /// A face's red, green or blue (0–255 for integers, 0–1 for floats).
+    Color(usize),
 }
 
 fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<IndexedMesh, IoError> {
@@ -510,6 +537,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
     let mut scalars: Vec<(String, Vec<f64>)> = Vec::new();
     let mut list: Vec<u32> = Vec::new();
     let (mut polygon_parts, mut line_parts, mut parts_read) = (Vec::new(), Vec::new(), false);
+    let (mut face_colors, mut colors_read) = (Vec::new(), false);
     // Caps up-front allocation: counts come from an untrusted header.
     let cap = |count: u64| count.min(1 << 16) as usize;
 
@@ -538,6 +566,9 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                     ("edge", "vertex1", Kind::Scalar(_)) => Role::EdgeEnd(0),
                     ("edge", "vertex2", Kind::Scalar(_)) => Role::EdgeEnd(1),
                     ("face" | "edge", "part", Kind::Scalar(_)) => Role::Part,
+                    ("face", "red", Kind::Scalar(_)) => Role::Color(0),
+                    ("face", "green", Kind::Scalar(_)) => Role::Color(1),
+                    ("face", "blue", Kind::Scalar(_)) => Role::Color(2),
                     _ => Role::Skip,
                 },
             )
@@ -578,6 +609,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
             let mut position = [0.0; 3];
             let mut edge = [0u32; 2];
             let mut part = 0u32;
+            let mut color = [1.0f64; 3];
             for (property, role) in element.properties.iter().zip(&roles) {
                 let what = || format!("property `{}` of {} {index}", property.name, element.name);
                 match property.kind {
@@ -600,6 +632,18 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                                         ))
                                     })?;
                                 parts_read = true;
+                            }
+                            Role::Color(channel) => {
+                                let unit = if ty.is_integer() {
+                                    value / 255.0
+                                } else {
+                                    value
+                                };
+                                if !unit.is_finite() {
+                                    return Err(malformed(format!("{} is not finite", what())));
+                                }
+                                color[channel] = srgb_to_linear(unit.clamp(0.0, 1.0));
+                                colors_read = true;
                             }
                             Role::Skip | Role::FaceIndices => {}
                         }
@@ -642,7 +686,11 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                     mesh.lines.push(edge);
                     line_parts.push(part);
                 }
-                "face" => polygon_parts.push(part),
+                "face" => {
+                    polygon_parts.push(part);
+                    let corners = mesh.face_indices.len() - face_colors.len();
+                    face_colors.extend(std::iter::repeat_n(color, corners));
+                }
                 _ => {}
             }
         }
@@ -666,6 +714,9 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
         mesh.parts = names;
         mesh.polygon_parts = polygon_parts;
         mesh.line_parts = line_parts;
+    }
+    if colors_read {
+        mesh.corner_colors = face_colors;
     }
     for (name, values) in &scalars {
         if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {

@@ -76,6 +76,10 @@ pub struct RuleFile {
     /// `{ projection = "box", size = 1 }`.
     #[serde(default)]
     pub uv: Option<Spanned<ArgValue>>,
+    /// Face colours of every part that sets none: `{ hsv = [h, s, v] }`
+    /// or `{ rgb = [r, g, b] }` over face properties.
+    #[serde(default)]
+    pub color: Option<Spanned<ArgValue>>,
 }
 
 /// What happens when a product would intersect the model.

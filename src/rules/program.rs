@@ -63,13 +63,16 @@ pub struct Program {
 
 /// Face (and wire edge) layer holding each element's part index.
 pub const PART_LAYER: &str = "part";
+/// Face layer holding each face's colour (linear RGB), when a part has a
+/// colour expression.
+pub const COLOR_LAYER: &str = "color";
 /// Face layer holding each face's material index, or [`NO_MATERIAL`].
 pub const MATERIAL_LAYER: &str = "material";
 /// A face whose step named no material: its part's applies.
 pub const NO_MATERIAL: i64 = -1;
 
 /// How the model looks in its files: its parts and materials.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default)]
 pub struct Look {
     /// Part 0 is the default part (named after the rule file), then the
     /// `[parts.NAME]` tables in name order, then parts only steps name,
@@ -77,6 +80,17 @@ pub struct Look {
     pub parts: Vec<PartLook>,
     /// The `[materials.NAME]` tables, in name order.
     pub materials: Vec<crate::geom::Material>,
+    /// Colour expressions, referenced by [`PartLook::color`].
+    pub colors: Vec<ColorSpec>,
+}
+
+/// A face colour computed when the run ends (`color = { hsv = [h, s, v] }`
+/// or `{ rgb = [r, g, b] }`): three expressions over the face's properties
+/// and the parameters, each clamped into [0, 1] (hue wraps), sRGB.
+#[derive(Debug, Clone)]
+pub struct ColorSpec {
+    pub hsv: bool,
+    pub channels: [Condition; 3],
 }
 
 /// One part's settings.
@@ -88,6 +102,8 @@ pub struct PartLook {
     /// Crease angle of the smooth normals in degrees; 0 = flat.
     pub crease: f64,
     pub uv: Option<crate::geom::uv::UvMapping>,
+    /// Index into [`Look::colors`].
+    pub color: Option<u32>,
 }
 
 impl Look {
@@ -101,6 +117,7 @@ impl Look {
             material: None,
             crease: 0.0,
             uv: None,
+            color: None,
         });
         part.name = name.to_owned();
         self.parts.push(part);

@@ -435,12 +435,21 @@ pub fn schema() -> Value {
               } }
         ] }),
     );
+    let channels = json!({ "type": "array", "minItems": 3, "maxItems": 3,
+        "items": { "oneOf": [ { "type": "number" }, r("condition") ] } });
+    definitions.insert(
+        "color".into(),
+        json!({ "type": "object", "additionalProperties": false, "minProperties": 1, "maxProperties": 1,
+                "description": "face colour over face properties, channels in [0, 1] (sRGB; hue in turns)",
+                "properties": { "hsv": channels.clone(), "rgb": channels } }),
+    );
     definitions.insert(
         "part".into(),
         json!({ "type": "object", "additionalProperties": false, "properties": {
             "material": { "type": "string" },
             "normals": r("normals"),
-            "uv": r("uv")
+            "uv": r("uv"),
+            "color": r("color")
         } }),
     );
     definitions.insert(
@@ -642,6 +651,10 @@ pub fn schema() -> Value {
                     r("uv"),
                     "texture coordinates of parts that set none (\"none\")",
                 ),
+            ),
+            (
+                "color",
+                describe(r("color"), "face colours of parts that set none"),
             ),
             (
                 "policy",

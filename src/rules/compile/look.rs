@@ -25,7 +25,7 @@ pub const MATERIAL_KEYS: [&str; 7] = [
 ];
 
 /// The keys of a `[parts.NAME]` table.
-pub const PART_KEYS: [&str; 3] = ["material", "normals", "uv"];
+pub const PART_KEYS: [&str; 4] = ["material", "normals", "uv", "color"];
 
 /// The keys of a `uv = { … }` table.
 const UV_KEYS: [&str; 3] = ["projection", "size", "axis"];
@@ -69,6 +69,7 @@ impl Compiler<'_> {
         let mut look = Look {
             parts: Vec::new(),
             materials,
+            colors: Vec::new(),
         };
         let material = match &ast.material {
             Some(m) => Some(self.material_reference(&look, m)?),
@@ -82,11 +83,16 @@ impl Compiler<'_> {
             Some(u) => self.uv(u)?,
             None => None,
         };
+        let color = match &ast.color {
+            Some(c) => Some(self.color_spec(&mut look, c)?),
+            None => None,
+        };
         let file_default = PartLook {
             name: default_part_name(&self.file.name),
             material,
             crease,
             uv,
+            color,
         };
         look.parts.push(file_default.clone());
         let mut tables: Vec<_> = ast.parts.0.iter().collect();
@@ -115,6 +121,7 @@ impl Compiler<'_> {
                     }
                     "normals" => part.crease = self.normals(value)?,
                     "uv" => part.uv = self.uv(value)?,
+                    "color" => part.color = Some(self.color_spec(&mut look, value)?),
                     other => return Err(self.unknown_key(key, other, &PART_KEYS, "a part")),
                 }
             }
@@ -389,6 +396,59 @@ impl Compiler<'_> {
             None => return Err(self.error(value.span.clone(), "`uv` needs a `projection`")),
         };
         Ok(Some(UvMapping { projection, size }))
+    }
+
+    /// `color = { hsv = [h, s, v] }` or `{ rgb = [r, g, b] }`: each
+    /// channel a number or an expression over face properties.
+    fn color_spec(&self, look: &mut Look, value: &Spanned<ArgValue>) -> Result<u32, RuleError> {
+        let expected = "{ hsv = [H, S, V] } or { rgb = [R, G, B] }, each a number or an expression over face properties";
+        let bad = || self.error(value.span.clone(), format!("expected {expected}"));
+        let ArgValue::Table(args) = &value.value else {
+            return Err(bad());
+        };
+        let [(key, channels)] = args.0.as_slice() else {
+            return Err(bad());
+        };
+        let hsv = match key.value.as_str() {
+            "hsv" => true,
+            "rgb" => false,
+            other => return Err(self.unknown_key(key, other, &["hsv", "rgb"], "color")),
+        };
+        let ArgValue::List(items) = &channels.value else {
+            return Err(bad());
+        };
+        if items.len() != 3 {
+            return Err(self.error(
+                channels.span.clone(),
+                format!("a colour has 3 channels, not {}", items.len()),
+            ));
+        }
+        let mut compiled = Vec::with_capacity(3);
+        for item in items {
+            let text = match &item.value {
+                ArgValue::Number(x) => format!("{x}"),
+                ArgValue::Text(t) => t.clone(),
+                other => {
+                    return Err(self.error(
+                        item.span.clone(),
+                        format!(
+                            "invalid type: {}, expected a number or an expression",
+                            other.describe()
+                        ),
+                    ))
+                }
+            };
+            let written = Spanned {
+                value: text,
+                span: item.span.clone(),
+            };
+            compiled.push(self.condition(crate::kernel::Domain::Face, &written)?);
+        }
+        let channels: [crate::rules::program::Condition; 3] =
+            compiled.try_into().expect("three channels");
+        look.colors
+            .push(crate::rules::program::ColorSpec { hsv, channels });
+        Ok(look.colors.len() as u32 - 1)
     }
 
     fn unknown_key(
