@@ -7,7 +7,7 @@ OUT ?= out
 TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench contact-sheet clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -42,6 +42,12 @@ validate-gltf: examples
 lint:
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --all-targets -- -D warnings
+
+## The README's picture of every example (docs/examples.png): one shaded
+## thumbnail per rule file, rendered by `graftal preview`.
+contact-sheet:
+	$(CARGO) build --release --quiet
+	$(TARGET_DIR)/release/graftal preview rules/*.toml rules/*.ron -o docs/examples.png --size 160
 
 ## Criterion benchmarks (release).
 bench:

@@ -55,9 +55,11 @@ impl LookArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct PreviewArgs {
-    /// A mesh file (OBJ, STL, PLY, glTF, GLB), or a rule file (.toml,
-    /// .ron), which is run first.
-    pub input: PathBuf,
+    /// Mesh files (OBJ, STL, PLY, glTF, GLB) or rule files (.toml, .ron,
+    /// run first). Several inputs make a contact sheet, one labelled
+    /// thumbnail each, in the order given.
+    #[arg(required = true, value_name = "INPUT")]
+    pub inputs: Vec<PathBuf>,
     /// The PNG to write.
     #[arg(short, long, value_name = "OUT.png")]
     pub output: PathBuf,
@@ -87,9 +89,34 @@ pub fn run(args: &PreviewArgs) -> Result<(), Failure> {
             args.output.display()
         )));
     }
-    let is_rules = has_extension(&args.input, "toml") || has_extension(&args.input, "ron");
-    let mesh = if is_rules {
-        let program = files::compile_rules(&args.input, &args.overrides)?;
+    let options = args.look.options(args.look.size);
+    let mut tiles = Vec::with_capacity(args.inputs.len());
+    for input in &args.inputs {
+        let mesh = load(args, input)?;
+        let image = render(&mesh, &options)
+            .map_err(|e| Failure::Runtime(format!("{}: {e}", input.display())))?;
+        let label = input
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        tiles.push((image, label));
+    }
+    let image = if tiles.len() == 1 {
+        tiles.pop().expect("one tile").0
+    } else {
+        let columns = ((tiles.len() as f64).sqrt().ceil() as u32).clamp(1, 8);
+        preview::contact_sheet(&tiles, columns)
+            .map_err(|e| Failure::Input(format!("contact sheet: {e}")))?
+    };
+    let png = preview::encode_png(&image).map_err(|e| Failure::Runtime(e.to_string()))?;
+    files::write_atomic(&args.output, &png)
+        .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", args.output.display())))
+}
+
+/// The mesh `input` holds, or the one its rules make.
+fn load(args: &PreviewArgs, input: &Path) -> Result<crate::geom::IndexedMesh, Failure> {
+    let is_rules = has_extension(input, "toml") || has_extension(input, "ron");
+    if is_rules {
+        let program = files::compile_rules(input, &args.overrides)?;
         let inputs = files::load_inputs(&program, args.input_args.policy())?;
         let options = RunOptions {
             seed: args.seed,
@@ -99,20 +126,15 @@ pub fn run(args: &PreviewArgs) -> Result<(), Failure> {
         };
         let result = grammar::run(&program, &options)
             .map_err(|e| Failure::Limit(super::run_exit_code(e.kind), e.to_string()))?;
-        grammar::export(&program, &result.mesh)
+        Ok(grammar::export(&program, &result.mesh))
     } else {
         if args.seed.is_some() || !args.overrides.is_empty() {
             return Err(Failure::Input(
                 "--seed and --set apply to rule files, not to mesh files".into(),
             ));
         }
-        args.input_args.read_mesh(&args.input)?
-    };
-    let image = render(&mesh, &args.look.options(args.look.size))
-        .map_err(|e| Failure::Runtime(format!("{}: {e}", args.input.display())))?;
-    let png = preview::encode_png(&image).map_err(|e| Failure::Runtime(e.to_string()))?;
-    files::write_atomic(&args.output, &png)
-        .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", args.output.display())))
+        args.input_args.read_mesh(input)
+    }
 }
 
 fn has_extension(path: &Path, ext: &str) -> bool {

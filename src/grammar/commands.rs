@@ -8,6 +8,7 @@
 
 use glam::DVec3;
 
+use crate::kernel::attrs::AttrValue;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::program::{Command, CommandKind, Condition};
@@ -335,6 +336,15 @@ fn split_face(
             let c = mesh.make_vert(plan.position);
             mesh.copy_vert_attrs(picked[0], c);
             new_node(mesh, c, plan, generation);
+            // The fan's faces inherit the face they replace (its part and
+            // material, among other layers); the age is set below.
+            let inherited: Vec<(String, AttrValue)> = mesh
+                .attributes()
+                .layers()
+                .iter()
+                .filter(|l| l.domain == Domain::Face)
+                .map(|l| (l.name.clone(), l.get(f.index())))
+                .collect();
             mesh.kill_face(f).map_err(e)?;
             // Spokes first, so each runs from its node to the new one
             // (thesis: eᵢ = (nᵢ, n₍ₙ₊₁₎)).
@@ -367,6 +377,9 @@ fn split_face(
                 }
                 piece.push(c);
                 let face = mesh.make_face(&piece).map_err(e)?;
+                for (name, value) in &inherited {
+                    let _ = mesh.set_attr(name, Domain::Face, face.index(), *value);
+                }
                 graph::set_age(mesh, Domain::Face, face.index(), generation);
                 made.faces.push(face);
             }

@@ -257,6 +257,7 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         OpId::Translate
         | OpId::Rotate
         | OpId::Scale
+        | OpId::Assign
         | OpId::Reverse
         | OpId::RecomputeNormals
         | OpId::Delete
@@ -479,6 +480,8 @@ pub(super) fn apply(
             }
         },
         OpId::Triangulate => faces::triangulate(mesh, &faces_list)?,
+        // The step tags what it returns (`grammar::asset::tag`).
+        OpId::Assign => Selection::from_parts(Vec::new(), edges.clone(), faces_list.clone()),
         OpId::Reverse => {
             faces::reverse_faces(mesh, &faces_list)?;
             Selection::from_parts(Vec::new(), Vec::new(), faces_list)

@@ -54,6 +54,7 @@ pub enum OpId {
     NurbsPart,
     NurbsPatch,
     PnSmooth,
+    Assign,
 }
 
 /// How an operator runs.
@@ -453,6 +454,7 @@ const SDF_BOOLEAN: &[ParamDef] = meshing_params!(
 
 const ANY: &[Domain] = &[Vert, Edge, Face];
 const FACES: &[Domain] = &[Face];
+const FACES_EDGES: &[Domain] = &[Face, Edge];
 
 /// The registry.
 pub static OPERATORS: &[OperatorDef] = &[
@@ -725,6 +727,15 @@ pub static OPERATORS: &[OperatorDef] = &[
         params: &[],
         exclusive: &[],
         summary: "triangulate faces",
+    },
+    OperatorDef {
+        id: OpId::Assign,
+        name: "assign",
+        family: Family::Kernel,
+        domains: FACES_EDGES,
+        params: &[],
+        exclusive: &[],
+        summary: "give the selected faces (or wire edges) the step's `part` and `material`; geometry unchanged",
     },
     OperatorDef {
         id: OpId::Reverse,

@@ -1513,6 +1513,17 @@ impl Expander<'_, '_> {
             Some(name) => Some(c.material_reference(&self.look, name)?),
             None => None,
         };
+        if def.is_some_and(|d| d.id == operators::OpId::Assign)
+            && part.is_none()
+            && material.is_none()
+        {
+            return Err(c
+                .error(
+                    op_span.clone(),
+                    "`assign` changes nothing without `part` or `material`",
+                )
+                .with_help("add `part = \"NAME\"` or `material = \"NAME\"` to the step"));
+        }
         self.tags_looks |= part.is_some() || material.is_some();
         Ok(StepBody {
             location,
