@@ -6,6 +6,7 @@ OUT ?= out
 # Where cargo puts binaries (respects CARGO_TARGET_DIR).
 TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
+THREE_DIR ?= $(CURDIR)/target/three
 
 .PHONY: example test unit doc-test examples validate-gltf lint bench contact-sheet clean
 
@@ -16,7 +17,7 @@ example:
 	@echo "example written to $(OUT)/chair.glb (stats: $(OUT)/chair.json)"
 
 ## The whole test suite: unit + integration tests, doc tests, every example
-## rule file through the Khronos glTF validator.
+## rule file through the Khronos glTF validator and three.js's GLTFLoader.
 test: unit doc-test validate-gltf
 
 unit:
@@ -38,6 +39,9 @@ validate-gltf: examples
 	@test -d $(GLTF_VALIDATOR_DIR)/node_modules/gltf-validator || \
 		npm install --silent --no-audit --no-fund --prefix $(GLTF_VALIDATOR_DIR) gltf-validator@2.0.0-dev.3.10
 	NODE_PATH=$(GLTF_VALIDATOR_DIR)/node_modules node tests/validate_gltf.mjs --strict $(OUT)/examples/*.glb
+	@test -d $(THREE_DIR)/node_modules/three || \
+		npm install --silent --no-audit --no-fund --prefix $(THREE_DIR) three@0.170.0
+	NODE_PATH=$(THREE_DIR)/node_modules node tests/load_three.mjs $(OUT)/examples/*.glb
 
 lint:
 	$(CARGO) fmt --all -- --check

@@ -251,6 +251,16 @@ fn bad_looks_are_located_errors() {
             "not a valid part name",
         ),
         (
+            "[start]\ncube = {}\n[[step]]\ntranslate = { offset = [0, 0, 1] }\npart = \"top\"\n",
+            "rules.toml:5:8",
+            "creates no faces",
+        ),
+        (
+            "[start]\ncube = {}\n[[step]]\nassign = {}\n",
+            "rules.toml:4:1",
+            "`assign` changes nothing without `part` or `material`",
+        ),
+        (
             "[materials.glass]\nalpha_cutoff = 0.3\n[start]\ncube = {}\n",
             "rules.toml:2:16",
             "only to alpha_mode = \"mask\"",
@@ -381,4 +391,62 @@ cube = { size = 2 }
         "rules.toml:1:19",
         "lenght",
     );
+}
+
+#[test]
+fn skeletons_show_as_tubes_or_go() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let rules = r#"
+[start]
+vertex = {}
+
+[[step]]
+name = "trunk"
+on = "verts"
+create_edge = { heading = [0, 0, 1], up = [1, 0, 0], length = 1 }
+
+[[step]]
+name = "branch"
+from = "trunk"
+on = "verts"
+create_edge = { heading = [1, 0, 1], up = [0, 0, 1], length = 0.5 }
+"#;
+    std::fs::write(d.join("s.toml"), rules).unwrap();
+    // Lines by default: STL cannot hold them and says so.
+    let o = graftal_in(d, &["run", "s.toml", "-o", "lines.stl"]);
+    assert!(stderr(&o).contains("--skeleton tubes"), "{}", stderr(&o));
+    // Tubes: closed hexagonal prisms, 20 triangles per edge, no warning.
+    let o = graftal_in(d, &["run", "s.toml", "-o", "t.stl", "--skeleton", "tubes"]);
+    assert!(
+        o.status.success() && !stderr(&o).contains("warning"),
+        "{}",
+        stderr(&o)
+    );
+    let tubes = read_mesh(&d.join("t.stl"));
+    assert_eq!(tubes.polygon_count(), 2 * 20);
+    let o = graftal_in(
+        d,
+        &[
+            "run",
+            "s.toml",
+            "-o",
+            "t.glb",
+            "--skeleton",
+            "tubes",
+            "--tube-radius",
+            "0.05",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = glb_json(&d.join("t.glb"));
+    assert_eq!(names(&json, "materials"), ["skeleton"]);
+    let max = json["accessors"][0]["max"][0].as_f64().unwrap();
+    // The branch ends at x = 0.5·√½ ≈ 0.354, plus at most the radius.
+    assert!(max > 0.354 && max < 0.354 + 0.051, "{max}");
+    // Omitted: no lines left in the OBJ.
+    let o = graftal_in(d, &["run", "s.toml", "-o", "o.obj", "--skeleton", "omit"]);
+    assert!(o.status.success());
+    let obj = std::fs::read_to_string(d.join("o.obj")).unwrap();
+    assert!(!obj.contains("\nl "), "{obj}");
 }

@@ -216,6 +216,25 @@ pub struct WriteArgs {
     /// hold part of the mesh (STL has no wire edges).
     #[arg(long)]
     pub strict: bool,
+    /// What wire edges (a G³ skeleton's lines) become: `lines` (the
+    /// default: kept as line primitives, `l` and edge elements), `tubes`
+    /// (closed hexagonal prisms with a dark `skeleton` material, which
+    /// every viewer, renderer and STL shows) or `omit`.
+    #[arg(long, value_enum, default_value_t = Skeleton::Lines)]
+    pub skeleton: Skeleton,
+    /// Radius of `--skeleton tubes` (default: 0.4% of the model's
+    /// bounding box diagonal).
+    #[arg(long, value_name = "R", value_parser = parse_tolerance)]
+    pub tube_radius: Option<f64>,
+}
+
+/// What wire edges become in the written file.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Skeleton {
+    #[default]
+    Lines,
+    Tubes,
+    Omit,
 }
 
 /// A mesh encoded for its file, and what the format could not hold.
@@ -251,11 +270,27 @@ pub(crate) fn encode_for(
     write: &WriteArgs,
     path: &Path,
 ) -> Result<Encoded, String> {
+    let shown;
+    let mesh = match write.skeleton {
+        Skeleton::Lines => mesh,
+        _ if mesh.lines.is_empty() => mesh,
+        Skeleton::Tubes => {
+            shown = crate::geom::tubes::lines_as_tubes(mesh, write.tube_radius);
+            &shown
+        }
+        Skeleton::Omit => {
+            let mut copy = mesh.clone();
+            copy.lines.clear();
+            copy.line_parts.clear();
+            shown = copy;
+            &shown
+        }
+    };
     let stl = matches!(format, io::MeshFormat::StlAscii | io::MeshFormat::StlBinary);
     let dropped_wire_edges = if stl { mesh.lines.len() } else { 0 };
     if dropped_wire_edges > 0 {
         let message = format!(
-            "{}: STL cannot hold the {dropped_wire_edges} wire edges of this mesh (a skeleton's lines); skin them (`skin = {{}}`) or write OBJ, PLY or glTF, which keep lines",
+            "{}: STL cannot hold the {dropped_wire_edges} wire edges of this mesh (a skeleton's lines); show them as tubes (`--skeleton tubes`), skin them (`skin = {{}}`) or write OBJ, PLY or glTF, which keep lines",
             path.display()
         );
         if write.strict {

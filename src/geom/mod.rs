@@ -29,6 +29,7 @@ pub mod normals;
 pub mod polygon;
 pub mod predicates;
 pub mod sink;
+pub mod tubes;
 pub mod union_find;
 pub mod uv;
 

@@ -1513,6 +1513,25 @@ impl Expander<'_, '_> {
             Some(name) => Some(c.material_reference(&self.look, name)?),
             None => None,
         };
+        // Steps that create no faces or edges (they move, merge or delete)
+        // would tag nothing: say so rather than do nothing.
+        let tags_nothing = def.is_some_and(|d| {
+            use operators::OpId::*;
+            matches!(
+                d.id,
+                Translate | Rotate | Scale | Merge | Delete | DissolveEdges
+            )
+        });
+        if tags_nothing && (part.is_some() || material.is_some()) {
+            let key = step
+                .part
+                .as_ref()
+                .or(step.material.as_ref())
+                .and_then(|k| k.span.clone());
+            return Err(c
+                .error(key, format!("`{}` creates no faces, so `part` and `material` would change nothing", op_key.value))
+                .with_help("give existing faces a part or material with a separate step: `assign = {}` with the same `select`"));
+        }
         if def.is_some_and(|d| d.id == operators::OpId::Assign)
             && part.is_none()
             && material.is_none()
