@@ -450,3 +450,48 @@ create_edge = { heading = [1, 0, 1], up = [0, 0, 1], length = 0.5 }
     let obj = std::fs::read_to_string(d.join("o.obj")).unwrap();
     assert!(!obj.contains("\nl "), "{obj}");
 }
+
+#[test]
+fn nurbs_parts_carry_their_surface_parameters_as_uvs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = common::graftal(&[
+        "run",
+        "rules/vase.toml",
+        "-o",
+        d.join("vase.glb").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = glb_json(&d.join("vase.glb"));
+    let attributes = &json["meshes"][0]["primitives"][0]["attributes"];
+    assert!(attributes["TEXCOORD_0"].is_number());
+    // The parameters leave as texture coordinates only.
+    assert!(attributes.get("_SURFACE_U").is_none(), "{attributes}");
+    let vase = read_mesh(&d.join("vase.glb"));
+    let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for k in 0..vase.polygon_count() {
+        let first = vase.face_starts[k] as usize;
+        let uvs = &vase.corner_uvs[first..vase.face_starts[k + 1] as usize];
+        for c in 0..2 {
+            let span = uvs.iter().map(|t| t[c]).fold(f64::MIN, f64::max)
+                - uvs.iter().map(|t| t[c]).fold(f64::MAX, f64::min);
+            // No triangle stretches across the seam.
+            assert!(span < 0.5, "triangle {k}: {uvs:?}");
+        }
+        for t in uvs {
+            for c in 0..2 {
+                lo[c] = lo[c].min(t[c]);
+                hi[c] = hi[c].max(t[c]);
+            }
+        }
+    }
+    // Around the lathe once (the seam's far side at 1), bottom to rim.
+    assert!(
+        lo[0].abs() < 1e-6 && (hi[0] - 1.0).abs() < 1e-6,
+        "{lo:?} {hi:?}"
+    );
+    assert!(
+        lo[1].abs() < 1e-6 && (hi[1] - 1.0).abs() < 1e-6,
+        "{lo:?} {hi:?}"
+    );
+}

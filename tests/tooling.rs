@@ -475,7 +475,7 @@ fn explain_text_breaks_down_what_was_not_applied() {
     let o = graftal(&["explain", "rules/grid-scope.toml"]);
     let text = stdout(&o);
     assert!(
-        text.contains("\n  nine/peak (split_face) at rules/grid-scope.toml:30:"),
+        text.contains("\n  nine/peak (split_face) at rules/grid-scope.toml:35:"),
         "{text}"
     );
     assert!(

@@ -1062,7 +1062,11 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     let bytes = encoded.bytes;
     let mesh = &result.mesh;
     entry.bytes = Some(bytes.len() as u64);
-    entry.sha256 = Some(hex(&Sha256::digest(&bytes)));
+    // Hashed only when something records it (a manifest, stats lines, the
+    // JSON summary): SHA-256 of a large mesh costs as much as encoding it.
+    if context.batch || context.want_stats || args.json {
+        entry.sha256 = Some(hex(&Sha256::digest(&bytes)));
+    }
     entry.counts = Some(Counts {
         vertices: mesh.vert_count(),
         edges: mesh.edge_count(),

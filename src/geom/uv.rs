@@ -21,7 +21,17 @@ pub enum Projection {
     /// the angle (one turn = one repeat, whatever the radius), v the
     /// height along the axis divided by `size`.
     Cylindrical { axis: usize },
+    /// A parametric surface's own (u, v), from the vertex scalars
+    /// [`SURFACE_U`] and [`SURFACE_V`] its tessellation left (divided by
+    /// `size`: 1 maps the surface onto the texture once). A polygon across
+    /// a closed direction's seam takes its low side one period up.
+    Surface,
 }
+
+/// Vertex scalar holding a tessellated surface's u parameter.
+pub const SURFACE_U: &str = "surface_u";
+/// Vertex scalar holding a tessellated surface's v parameter.
+pub const SURFACE_V: &str = "surface_v";
 
 /// One part's projection and texture size (model units per repeat).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -61,6 +71,23 @@ pub fn project(mesh: &IndexedMesh, by_part: &[Option<UvMapping>]) -> Vec<[f64; 2
                     *uv = box_uv(*p, axis, 1.0).map(|c| c * scale);
                 }
             }
+            Projection::Surface => {
+                let (Some(us), Some(vs)) =
+                    (mesh.vertex_scalar(SURFACE_U), mesh.vertex_scalar(SURFACE_V))
+                else {
+                    continue;
+                };
+                for (uv, &i) in uvs.iter_mut().zip(poly) {
+                    *uv = [us[i as usize], vs[i as usize]];
+                }
+                for c in 0..2 {
+                    unwrap_seam(uvs, c);
+                }
+                fix_poles(uvs);
+                for uv in uvs.iter_mut() {
+                    *uv = uv.map(|x| x * scale);
+                }
+            }
             Projection::Cylindrical { axis } => {
                 let centre = centres[part];
                 let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
@@ -72,20 +99,46 @@ pub fn project(mesh: &IndexedMesh, by_part: &[Option<UvMapping>]) -> Vec<[f64; 2
                 // A polygon across the seam (u jumps by more than half a
                 // turn) takes its low side one turn up, so it does not
                 // stretch over the whole texture.
-                let (lo, hi) = uvs
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), uv| {
-                        (lo.min(uv[0]), hi.max(uv[0]))
-                    });
-                if hi - lo > 0.5 {
-                    for uv in uvs.iter_mut().filter(|uv| uv[0] < 0.5) {
-                        uv[0] += 1.0;
-                    }
-                }
+                unwrap_seam(uvs, 0);
             }
         }
     }
     out
+}
+
+/// A polygon whose coordinate `c` jumps by more than half a period (a
+/// seam at 0 / 1) takes its low side one period up, so it does not
+/// stretch over the whole texture.
+fn unwrap_seam(uvs: &mut [[f64; 2]], c: usize) {
+    let (lo, hi) = uvs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), uv| {
+            (lo.min(uv[c]), hi.max(uv[c]))
+        });
+    if hi - lo > 0.5 {
+        for uv in uvs.iter_mut().filter(|uv| uv[c] < 0.5) {
+            uv[c] += 1.0;
+        }
+    }
+}
+
+/// A pole (a boundary of v collapsed to one point, as a lathe's closed
+/// bottom) is one vertex with one u for every triangle around it: a
+/// corner on v's border more than a quarter period in u from the
+/// polygon's other corners takes their mean u, as UV spheres do.
+fn fix_poles(uvs: &mut [[f64; 2]]) {
+    let n = uvs.len() as f64;
+    for k in 0..uvs.len() {
+        let [u, v] = uvs[k];
+        if v != 0.0 && v != 1.0 {
+            continue;
+        }
+        let others = uvs.iter().enumerate().filter(|&(j, _)| j != k);
+        let mean = others.map(|(_, t)| t[0]).sum::<f64>() / (n - 1.0);
+        if (u - mean).abs() > 0.25 {
+            uvs[k][0] = mean;
+        }
+    }
 }
 
 /// The axis `n` points along most (ties go to the later axis: Z wins, so

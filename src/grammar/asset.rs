@@ -122,6 +122,10 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     if mappings.iter().any(Option::is_some) {
         out.corner_uvs = uv::project(&out, &mappings);
     }
+    // Surface parameters are the tessellations' bookkeeping, not scalars
+    // the files should carry: they leave as texture coordinates only.
+    out.vertex_scalars
+        .retain(|(name, _)| name != uv::SURFACE_U && name != uv::SURFACE_V);
     if let Some(layer) = mesh.attributes().layer(COLOR_LAYER, Domain::Face) {
         let mut colors = Vec::with_capacity(out.face_indices.len());
         for (k, f) in mesh.face_ids().enumerate() {

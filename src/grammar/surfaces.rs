@@ -10,6 +10,7 @@ use glam::{DMat3, DVec3};
 use super::error::StepError;
 use crate::geom::normals::corner_normals;
 use crate::geom::sink::{Begin, MeshSink, Placed};
+use crate::geom::uv::{SURFACE_U, SURFACE_V};
 use crate::kernel::build::KernelBuilder;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, Mesh};
@@ -184,7 +185,13 @@ pub(super) fn create(
     call: &Call,
 ) -> Result<(Selection, SurfaceStats), StepError> {
     let (t, stats) = tessellate_call(ctx, call, 1)?;
-    let made = append_triangles(mesh, &t.mesh.positions, &t.mesh.triangles, None)?;
+    let made = append_surface(
+        mesh,
+        &t.mesh.positions,
+        &t.mesh.uvs,
+        &t.mesh.triangles,
+        None,
+    )?;
     Ok((made, stats))
 }
 
@@ -218,9 +225,10 @@ pub(super) fn place_parts(
     };
     let mut made = Selection::new();
     for (linear, origin, _) in placements {
-        let part = append_triangles(
+        let part = append_surface(
             mesh,
             &t.mesh.positions,
+            &t.mesh.uvs,
             &t.mesh.triangles,
             Some((linear, origin)),
         )?;
@@ -345,15 +353,37 @@ fn append_triangles(
     triangles: &[[u32; 3]],
     placed: Option<(DMat3, DVec3)>,
 ) -> Result<Selection, StepError> {
+    append_surface(mesh, positions, &[], triangles, placed)
+}
+
+/// [`append_triangles`] whose vertices also carry their surface
+/// parameters `(u, v)` (when `uvs` has one per vertex) in the vertex
+/// layers [`SURFACE_U`] and [`SURFACE_V`], for `uv = { projection =
+/// "surface" }` (issue 16).
+fn append_surface(
+    mesh: &mut Mesh,
+    positions: &[[f64; 3]],
+    uvs: &[[f64; 2]],
+    triangles: &[[u32; 3]],
+    placed: Option<(DMat3, DVec3)>,
+) -> Result<Selection, StepError> {
+    let with_uv = !uvs.is_empty() && uvs.len() == positions.len();
+    let names: &[&str] = if with_uv {
+        &[SURFACE_U, SURFACE_V]
+    } else {
+        &[]
+    };
     let mut builder = KernelBuilder::new(mesh);
     let emit = |sink: &mut dyn MeshSink| {
         sink.begin(&Begin {
             vertices: positions.len(),
             polygons: triangles.len(),
+            scalars: names,
             ..Begin::default()
         })?;
-        for p in positions {
-            sink.vertex(DVec3::from_array(*p), &[])?;
+        for (i, p) in positions.iter().enumerate() {
+            let scalars = if with_uv { &uvs[i][..] } else { &[][..] };
+            sink.vertex(DVec3::from_array(*p), scalars)?;
         }
         for t in triangles {
             sink.polygon(t)?;

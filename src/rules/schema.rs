@@ -285,6 +285,10 @@ fn step(kind: StepKind) -> Value {
             Value::Object(p)
         };
         choice["properties"] = restricted;
+        if op.id == operators::OpId::Assign {
+            // `assign` changes nothing without one of them.
+            choice["anyOf"] = json!([{ "required": ["part"] }, { "required": ["material"] }]);
+        }
         choices.push(choice);
     }
     if kind != StepKind::Start {
@@ -429,7 +433,7 @@ pub fn schema() -> Value {
             { "const": "none" },
             { "type": "object", "additionalProperties": false, "required": ["projection"],
               "properties": {
-                "projection": { "enum": ["box", "planar", "cylindrical"] },
+                "projection": { "enum": ["box", "planar", "cylindrical", "surface"] },
                 "size": { "type": "number", "exclusiveMinimum": 0, "description": "model length one texture repeat covers (1)" },
                 "axis": { "enum": ["x", "y", "z"], "description": "planar and cylindrical: the axis (z)" }
               } }

@@ -329,7 +329,7 @@ impl Compiler<'_> {
 
     /// `uv`: `"none"` or a projection table.
     fn uv(&self, value: &Spanned<ArgValue>) -> Result<Option<UvMapping>, RuleError> {
-        let expected = "\"none\" or { projection = \"box\" | \"planar\" | \"cylindrical\", size = LENGTH, axis = \"x\" | \"y\" | \"z\" }";
+        let expected = "\"none\" or { projection = \"box\" | \"planar\" | \"cylindrical\" | \"surface\", size = LENGTH, axis = \"x\" | \"y\" | \"z\" }";
         let args = match &value.value {
             ArgValue::Text(t) | ArgValue::Name(t) if t == "none" => return Ok(None),
             ArgValue::Table(args) => args,
@@ -346,7 +346,7 @@ impl Compiler<'_> {
             match key.value.as_str() {
                 "projection" => {
                     projection = Some((
-                        self.text(v, "\"box\", \"planar\" or \"cylindrical\"")?,
+                        self.text(v, "\"box\", \"planar\", \"cylindrical\" or \"surface\"")?,
                         v.span.clone(),
                     ))
                 }
@@ -385,6 +385,7 @@ impl Compiler<'_> {
             }
             Some(("planar", _)) => Projection::Planar { axis },
             Some(("cylindrical", _)) => Projection::Cylindrical { axis },
+            Some(("surface", _)) => Projection::Surface,
             Some((other, span)) => {
                 return Err(self.error(
                     span,
