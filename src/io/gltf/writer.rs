@@ -464,6 +464,27 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
         }
     }
     let draws = plan_draws(mesh)?;
+    // The buffer's size is known now: reserve it once (growing a ~100 MB
+    // vector by doubling copies it several times over).
+    let per_vertex = |d: &Draw| {
+        let surface = d.mode == json::mesh::Mode::Triangles;
+        let uv = if surface && !mesh.corner_uvs.is_empty() {
+            2
+        } else {
+            0
+        };
+        let color = if surface && !mesh.corner_colors.is_empty() {
+            3
+        } else {
+            0
+        };
+        3 + if surface { 3 } else { 0 } + uv + color + scalars.len()
+    };
+    let words: usize = draws
+        .iter()
+        .flatten()
+        .map(|d| d.vertices.len() * per_vertex(d) + d.indices.len())
+        .sum();
     let mut b = Builder {
         root: json::Root {
             asset: json::Asset {
@@ -472,7 +493,7 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
             },
             ..Default::default()
         },
-        words: Words(Vec::new()),
+        words: Words(Vec::with_capacity(words)),
         custom: Vec::new(),
     };
     // Every material is written, in index order, used or not.
