@@ -16,7 +16,8 @@
 //!   every producer of geometry emits through.
 //! - [`material`]: PBR metallic-roughness materials and the sRGB
 //!   transfer functions; [`normals`]: shading normals split at creases;
-//!   [`uv`]: texture-coordinate projections.
+//!   [`uv`]: texture-coordinate projections; [`tubes`]: wire edges as
+//!   closed prisms a viewer draws.
 //! - [`union_find`] and [`names`] (the "did you mean" of every message).
 
 pub mod boxes;
