@@ -491,6 +491,11 @@ impl Reader<'_> {
                 .collect();
             dedupe_names(&mut mesh.materials);
             let fallback = mesh.materials.len() as u32;
+            // A primitive naming a material the file lacks gets the default.
+            let materials: Vec<Option<u32>> = materials
+                .into_iter()
+                .map(|m| m.filter(|&m| m < fallback))
+                .collect();
             if materials.iter().any(Option::is_none) {
                 // The glTF default material (§3.9.6): white, metallic, rough.
                 mesh.materials.push(Material {

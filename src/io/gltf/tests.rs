@@ -638,3 +638,25 @@ fn glb_million_triangles_timing() {
         gltf_time * 1e3
     );
 }
+
+#[test]
+fn a_primitive_naming_a_missing_material_reads_with_the_default() {
+    let mut mesh = IndexedMesh::new();
+    mesh.positions = vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    mesh.push_polygon(&[0, 1, 2]);
+    mesh.materials = vec![crate::geom::Material {
+        name: "wood".into(),
+        double_sided: Some(true),
+        ..crate::geom::Material::fallback()
+    }];
+    mesh.polygon_materials = vec![0];
+    let mut bytes = encode_glb(&mesh).unwrap();
+    let key = b"\"material\":0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap();
+    bytes[at + key.len() - 1] = b'7';
+    let back = decode(&bytes, p()).unwrap();
+    back.validate().unwrap();
+    let names: Vec<&str> = back.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["wood", "gltf_default"]);
+    assert_eq!(back.polygon_materials, vec![1]);
+}
