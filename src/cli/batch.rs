@@ -1125,25 +1125,16 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     }
 }
 
-/// Columns of a contact sheet of `tiles` thumbnails: near square, at
-/// most 8.
-fn sheet_columns(tiles: usize) -> u32 {
-    ((tiles as f64).sqrt().ceil() as u32).clamp(1, 8)
-}
-
 /// Refuses, before anything runs, a contact sheet that is not a PNG or
 /// would exceed the renderer's size limit.
 fn check_contact_sheet(path: &Path, tiles: usize, size: u32) -> Result<(), Failure> {
-    if !path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
+    if !super::preview::has_extension(path, "png") {
         return Err(Failure::Input(format!(
             "--contact-sheet {}: a contact sheet is a PNG; name it *.png",
             path.display()
         )));
     }
-    let columns = u64::from(sheet_columns(tiles));
+    let columns = u64::from(super::preview::sheet_columns(tiles));
     let rows = (tiles as u64).div_ceil(columns);
     let cell = u64::from(size + crate::preview::SHEET_PADDING);
     let pixels = columns * cell * rows * (cell + u64::from(crate::preview::LABEL_HEIGHT));
@@ -1185,7 +1176,7 @@ fn contact_sheet(
             }
         })
         .collect();
-    let sheet = crate::preview::contact_sheet(&tiles, sheet_columns(tiles.len()))
+    let sheet = crate::preview::contact_sheet(&tiles, super::preview::sheet_columns(tiles.len()))
         .map_err(|e| Failure::Runtime(format!("contact sheet: {e}")))?;
     crate::preview::encode_png(&sheet).map_err(|e| Failure::Runtime(e.to_string()))
 }

@@ -103,8 +103,7 @@ pub fn run(args: &PreviewArgs) -> Result<(), Failure> {
     let image = if tiles.len() == 1 {
         tiles.pop().expect("one tile").0
     } else {
-        let columns = ((tiles.len() as f64).sqrt().ceil() as u32).clamp(1, 8);
-        preview::contact_sheet(&tiles, columns)
+        preview::contact_sheet(&tiles, sheet_columns(tiles.len()))
             .map_err(|e| Failure::Input(format!("contact sheet: {e}")))?
     };
     let png = preview::encode_png(&image).map_err(|e| Failure::Runtime(e.to_string()))?;
@@ -137,7 +136,14 @@ fn load(args: &PreviewArgs, input: &Path) -> Result<crate::geom::IndexedMesh, Fa
     }
 }
 
-fn has_extension(path: &Path, ext: &str) -> bool {
+/// Columns of a contact sheet of `tiles` thumbnails: near square, at
+/// most 8.
+pub(crate) fn sheet_columns(tiles: usize) -> u32 {
+    ((tiles as f64).sqrt().ceil() as u32).clamp(1, 8)
+}
+
+/// Whether `path` ends in `.ext` (any case).
+pub(crate) fn has_extension(path: &Path, ext: &str) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case(ext))

@@ -59,12 +59,14 @@ pub fn lines_as_tubes(mesh: &IndexedMesh, radius: Option<f64>) -> IndexedMesh {
         };
         let u = any_perpendicular(dir);
         let v = dir.cross(u);
+        let radial = |s: usize| {
+            let angle = std::f64::consts::TAU * (s % TUBE_SIDES) as f64 / TUBE_SIDES as f64;
+            u * libm::cos(angle) + v * libm::sin(angle)
+        };
         let first = out.positions.len() as u32;
         for (end, centre) in [(line[0], a), (line[1], b)] {
             for s in 0..TUBE_SIDES {
-                let angle = std::f64::consts::TAU * s as f64 / TUBE_SIDES as f64;
-                let offset = (u * libm::cos(angle) + v * libm::sin(angle)) * radius;
-                out.positions.push((centre + offset).to_array());
+                out.positions.push((centre + radial(s) * radius).to_array());
                 for (_, values) in out.vertex_scalars.iter_mut() {
                     let value = values[end as usize];
                     values.push(value);
@@ -90,10 +92,6 @@ pub fn lines_as_tubes(mesh: &IndexedMesh, radius: Option<f64>) -> IndexedMesh {
                 out.polygon_parts.push(part);
             }
             out.polygon_materials.push(material);
-        };
-        let radial = |s: usize| {
-            let angle = std::f64::consts::TAU * s as f64 / TUBE_SIDES as f64;
-            u * libm::cos(angle) + v * libm::sin(angle)
         };
         for s in 0..TUBE_SIDES {
             // Counter-clockwise seen from outside: a ring step, then along.

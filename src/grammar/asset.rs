@@ -75,11 +75,12 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
 
     // Materials: the step's, else the part's, else the fallback.
     let fallback = look.materials.len();
+    let own_material = int_layer(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL);
     let face_materials: Vec<usize> = mesh
         .face_ids()
         .zip(&face_parts)
         .map(|(f, &p)| {
-            let own = int_attr(mesh, MATERIAL_LAYER, Domain::Face, f.index(), NO_MATERIAL);
+            let own = own_material(f.index());
             usize::try_from(own)
                 .ok()
                 .filter(|&m| m < look.materials.len())
@@ -151,9 +152,16 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     out
 }
 
-/// An element's value in an integer layer, `default` without the layer.
-fn int_attr(mesh: &Mesh, name: &str, domain: Domain, index: usize, default: i64) -> i64 {
-    match mesh.attr(name, domain, index) {
+/// Reads an integer layer: looked up once (not per element), `default`
+/// where the layer or the value is missing.
+pub(super) fn int_layer<'m>(
+    mesh: &'m Mesh,
+    name: &str,
+    domain: Domain,
+    default: i64,
+) -> impl Fn(usize) -> i64 + 'm {
+    let layer = mesh.attributes().layer(name, domain);
+    move |index| match layer.map(|l| l.get(index)) {
         Some(AttrValue::Int(v)) => v,
         _ => default,
     }
@@ -164,14 +172,18 @@ fn int_attr(mesh: &Mesh, name: &str, domain: Domain, index: usize, default: i64)
 fn element_parts(program: &Program, mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
     let parts = program.look.parts.len();
     let part_of = |v: i64| usize::try_from(v).ok().filter(|&p| p < parts).unwrap_or(0);
+    let (face_part, edge_part) = (
+        int_layer(mesh, PART_LAYER, Domain::Face, 0),
+        int_layer(mesh, PART_LAYER, Domain::Edge, 0),
+    );
     let faces = mesh
         .face_ids()
-        .map(|f| part_of(int_attr(mesh, PART_LAYER, Domain::Face, f.index(), 0)))
+        .map(|f| part_of(face_part(f.index())))
         .collect();
     let lines = mesh
         .edge_ids()
         .filter(|&e| mesh.is_wire_edge(e))
-        .map(|e| part_of(int_attr(mesh, PART_LAYER, Domain::Edge, e.index(), 0)))
+        .map(|e| part_of(edge_part(e.index())))
         .collect();
     (faces, lines)
 }

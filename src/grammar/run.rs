@@ -769,11 +769,9 @@ impl Runner<'_> {
         let base = self.program.param_names.len();
         let faces: Vec<FaceId> = mesh.face_ids().collect();
         let mut painted = Vec::with_capacity(faces.len());
+        let part_of = super::asset::int_layer(mesh, PART_LAYER, Domain::Face, 0);
         for &f in &faces {
-            let part = match mesh.attr(PART_LAYER, Domain::Face, f.index()) {
-                Some(AttrValue::Int(p)) => usize::try_from(p).unwrap_or(0),
-                _ => 0,
-            };
+            let part = usize::try_from(part_of(f.index())).unwrap_or(0);
             let Some(spec) = look
                 .parts
                 .get(part)
@@ -807,6 +805,7 @@ impl Runner<'_> {
             };
             painted.push(Some(DVec3::from_array(srgb.map(srgb_to_linear))));
         }
+        drop(part_of);
         let _ = mesh.add_layer(COLOR_LAYER, Domain::Face, AttrValue::Vector(DVec3::ONE));
         for (f, color) in faces.into_iter().zip(painted) {
             if let Some(color) = color {
