@@ -538,10 +538,18 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
     let mut list: Vec<u32> = Vec::new();
     let (mut polygon_parts, mut line_parts, mut parts_read) = (Vec::new(), Vec::new(), false);
     let (mut face_colors, mut colors_read) = (Vec::new(), false);
+    let mut vertex_colors: Vec<[f64; 3]> = Vec::new();
     // Caps up-front allocation: counts come from an untrusted header.
     let cap = |count: u64| count.min(1 << 16) as usize;
 
     for element in &header.elements {
+        // red, green and blue together are a colour; one alone a scalar.
+        let rgb = ["red", "green", "blue"].iter().all(|c| {
+            element
+                .properties
+                .iter()
+                .any(|p| p.name == *c && matches!(p.kind, Kind::Scalar(_)))
+        });
         let roles: Vec<Role> = element
             .properties
             .iter()
@@ -550,6 +558,11 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                     ("vertex", "x", Kind::Scalar(_)) => Role::Coordinate(0),
                     ("vertex", "y", Kind::Scalar(_)) => Role::Coordinate(1),
                     ("vertex", "z", Kind::Scalar(_)) => Role::Coordinate(2),
+                    // Vertex colours (what trimesh, MeshLab and Open3D write):
+                    // each corner takes its vertex's.
+                    ("vertex", "red", Kind::Scalar(_)) if rgb => Role::Color(0),
+                    ("vertex", "green", Kind::Scalar(_)) if rgb => Role::Color(1),
+                    ("vertex", "blue", Kind::Scalar(_)) if rgb => Role::Color(2),
                     ("vertex", name, Kind::Scalar(_)) if valid_scalar_name(name) => {
                         // A case-insensitive duplicate name is skipped rather than rejected.
                         if scalars.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)) {
@@ -574,6 +587,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
             )
             .collect();
         let has = |f: &dyn Fn(&Role) -> bool| roles.iter().any(f);
+        let has_color = has(&|r| matches!(r, Role::Color(_)));
         match element.name.as_str() {
             "vertex" => {
                 for axis in 0..3 {
@@ -643,7 +657,6 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                                     return Err(malformed(format!("{} is not finite", what())));
                                 }
                                 color[channel] = srgb_to_linear(unit.clamp(0.0, 1.0));
-                                colors_read = true;
                             }
                             Role::Skip | Role::FaceIndices => {}
                         }
@@ -681,12 +694,16 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                         )));
                     }
                     mesh.positions.push(position);
+                    if has_color {
+                        vertex_colors.push(color);
+                    }
                 }
                 "edge" => {
                     mesh.lines.push(edge);
                     line_parts.push(part);
                 }
                 "face" => {
+                    colors_read |= has_color;
                     polygon_parts.push(part);
                     let corners = mesh.face_indices.len() - face_colors.len();
                     face_colors.extend(std::iter::repeat_n(color, corners));
@@ -717,6 +734,12 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
     }
     if colors_read {
         mesh.corner_colors = face_colors;
+    } else if !vertex_colors.is_empty() {
+        mesh.corner_colors = mesh
+            .face_indices
+            .iter()
+            .map(|&v| vertex_colors[v as usize])
+            .collect();
     }
     for (name, values) in &scalars {
         if let Some(vertex) = values.iter().position(|v| !v.is_finite()) {
@@ -760,6 +783,20 @@ fn vertex_ref(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn vertex_colours_become_corner_colours() {
+        let text = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+0 0 0 255 0 0\n1 0 0 0 255 0\n0 1 0 0 0 255\n3 0 1 2\n";
+        let m = decode(text, Path::new("c.ply")).unwrap();
+        assert!(m.vertex_scalars.is_empty(), "colours are not scalars");
+        assert_eq!(
+            m.corner_colors,
+            vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+        );
+    }
     use crate::io::test_meshes;
 
     fn p() -> &'static Path {
