@@ -27,6 +27,7 @@ const OPEN_EXAMPLES: &[&str] = &[
     "nurbs-surface",
     "bezier-patch",
     "vase",
+    "cup",
 ];
 
 #[test]

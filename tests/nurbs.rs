@@ -390,3 +390,130 @@ fn nurbs_patch_replaces_quads_and_keeps_the_solid_closed() {
     assert_eq!(flat["mesh"]["watertight"], true);
     assert!((flat["mesh"]["volume"].as_f64().unwrap() - 4.0).abs() < 1e-12);
 }
+
+/// The nine-point rational circle of radius `r` as a `[nurbs.NAME]` curve.
+fn circle_curve(name: &str, r: f64) -> String {
+    format!(
+        "[nurbs.{name}]\ndegree = 2\npoints = [[{r}, 0, 0], [{r}, {r}, 0], [0, {r}, 0], [-{r}, {r}, 0], [-{r}, 0, 0], [-{r}, -{r}, 0], [0, -{r}, 0], [{r}, -{r}, 0], [{r}, 0, 0]]\nweights = \"1 - (1 - sqrt(0.5)) * (i % 2)\"\nknots = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]\n"
+    )
+}
+
+#[test]
+fn a_circle_swept_round_a_circle_is_a_closed_torus() {
+    let dir = temp_dir();
+    let text = format!(
+        "{}{}[nurbs.ring]\nprofile = \"tube\"\npath = \"spine\"\npath_tolerance = 1e-4\n[start]\nnurbs = {{ surface = \"ring\", tolerance = 1e-3 }}\n",
+        circle_curve("tube", 0.25),
+        circle_curve("spine", 2.0)
+    );
+    std::fs::write(dir.path().join("t.toml"), text).unwrap();
+    let o = graftal_in(
+        dir.path(),
+        &["run", "t.toml", "-o", "t.obj", "--stats", "-"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let mesh = &stats(&o)["mesh"];
+    assert_eq!(mesh["watertight"], true, "{mesh}");
+    assert_eq!(mesh["euler_characteristic"], 0, "a torus");
+    assert_eq!(mesh["consistently_oriented"], true);
+    // Outward normals: the volume is the torus's, 2π²Rr², within the tolerances.
+    let volume = mesh["volume"].as_f64().unwrap();
+    let exact = 2.0 * std::f64::consts::PI.powi(2) * 2.0 * 0.25f64.powi(2);
+    assert!((volume - exact).abs() / exact < 5e-3, "{volume} vs {exact}");
+    let m = common::read_mesh(&dir.path().join("t.obj"));
+    let worst = m
+        .positions
+        .iter()
+        .map(|p| ((p[0].hypot(p[1]) - 2.0).hypot(p[2]) - 0.25).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 2e-3, "off the torus by {worst}");
+}
+
+#[test]
+fn a_lathe_of_a_named_curve_equals_the_lathe_of_its_list() {
+    let dir = temp_dir();
+    let listed = "[nurbs.v]\ndegree = 2\nprofile = [[0, 0], [1, 0.5], [0.6, 1.5], [0.8, 2]]\n[start]\nnurbs = { surface = \"v\" }\n";
+    let named = "[nurbs.p]\ndegree = 2\npoints = [[0, 0, 0], [1, 0, 0.5], [0.6, 0, 1.5], [0.8, 0, 2]]\n[nurbs.v]\nprofile = \"p\"\n[start]\nnurbs = { surface = \"v\" }\n";
+    let mut meshes = Vec::new();
+    for (name, text) in [("a", listed), ("b", named)] {
+        std::fs::write(dir.path().join(format!("{name}.toml")), text).unwrap();
+        let out = format!("{name}.obj");
+        let o = graftal_in(dir.path(), &["run", &format!("{name}.toml"), "-o", &out]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        meshes.push(common::read_mesh(&dir.path().join(out)));
+    }
+    assert_eq!(meshes[0].positions, meshes[1].positions, "the same surface");
+    assert_eq!(meshes[0].face_indices, meshes[1].face_indices);
+}
+
+#[test]
+fn the_cup_example_is_two_clean_parts() {
+    let s = run_stats(&["rules/cup.toml"]);
+    assert_eq!(s["mesh"]["components"], 2);
+    assert_eq!(s["mesh"]["manifold"], true);
+    assert_eq!(s["mesh"]["non_manifold_edges"], 0);
+    // The body is closed; only the handle's two ends are open.
+    let open = s["mesh"]["boundary_edges"].as_u64().unwrap();
+    assert!(open > 0 && open <= 64, "{open} boundary edges");
+    let parts: Vec<&str> = s["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(parts, ["body", "handle"]);
+    assert!(surface_of(&s, "step1")["max_deviation"].as_f64().unwrap() <= 0.002);
+}
+
+#[test]
+fn bad_curves_and_sweeps_are_located_errors() {
+    let dir = temp_dir();
+    let grip = circle_curve("c", 0.1);
+    let line = "[nurbs.l]\ndegree = 1\npoints = [[0, 0, 0], [0, 0, 1]]\n";
+    let cases = [
+        (
+            format!("{grip}[start]\nnurbs = {{ surface = \"c\" }}\n"),
+            "rules.toml:7:21",
+            "`c` is a curve, not a surface",
+        ),
+        (
+            format!("{grip}{line}[nurbs.s]\nprofile = \"c\"\npath = \"nope\"\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:11:8",
+            "no nurbs curve named `nope`",
+        ),
+        (
+            format!("{grip}{line}[nurbs.s]\nprofile = \"c\"\npath = \"l\"\ndegree = 3\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:12:10",
+            "takes their degree",
+        ),
+        (
+            format!("{grip}{line}[nurbs.s]\nprofile = \"c\"\npath = \"l\"\npath_tolerance = 0\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:12:18",
+            "must be a positive number",
+        ),
+        (
+            format!("{grip}{line}[nurbs.s]\nprofile = \"c\"\npath = \"l\"\norient = \"sideways\"\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:12:10",
+            "invalid orient `sideways`",
+        ),
+        (
+            // The grip is drawn in XY: not a lathe profile.
+            format!("{grip}[nurbs.s]\nprofile = \"c\"\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:7:11",
+            "a profile lies in the XZ plane",
+        ),
+        (
+            "[nurbs.c]\ndegree = 1\nsize = 2\npoints = [[0, 0, 0], [1, 0, 0]]\nknots_u = [0, 0, 1, 1]\n[start]\nnurbs = { surface = \"c\" }\n".to_owned(),
+            "rules.toml:5:11",
+            "a curve (one `size`) takes",
+        ),
+        (
+            "[nurbs.c]\ndegree = 3\npoints = [[0, 0, 0], [1, 0, 0]]\n[nurbs.s]\nprofile = \"c\"\n[start]\nnurbs = { surface = \"s\" }\n".to_owned(),
+            "rules.toml:2:10",
+            "nurbs curve `c`",
+        ),
+    ];
+    for (text, location, words) in &cases {
+        common::assert_located_error(dir.path(), text, location, words);
+    }
+}

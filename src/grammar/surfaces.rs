@@ -78,10 +78,12 @@ fn tessellate_call(
     copies: usize,
 ) -> Result<(Tessellation, SurfaceStats), StepError> {
     let def = &ctx.surfaces[call.surface("surface").expect("required")];
-    let surface = def.build(ctx.slots).map_err(|e| StepError::Surface {
-        surface: def.name.clone(),
-        message: format!("{}: {}", e.key, e.message),
-    })?;
+    let surface = def
+        .build(ctx.surfaces, ctx.slots)
+        .map_err(|e| StepError::Surface {
+            surface: def.name.clone(),
+            message: format!("{}: {}", e.key, e.message),
+        })?;
     let value = |key: &str| call.scalar(key).map(|e| e.eval(ctx.slots));
     let tolerance = value("tolerance").unwrap_or(1e-3);
     let mode = match call.choice("mode") {

@@ -10,6 +10,7 @@
 //! - [`surface`]: [`surface::NurbsSurface`] (eqs. 1.11, 1.15), derivatives to order 2, unit
 //!   normals with the degenerate-normal fallback (eq. 1.18, spec §2.2.5), factorised grid
 //!   evaluation (D9), knot insertion, Bézier decomposition, closed directions and poles.
+//! - [`sweep`]: surfaces of revolution and sweeps of a profile curve along a path.
 //! - [`tess`]: uniform, inter-patch adaptive and fully adaptive tessellation (thesis ch. 2,
 //!   decisions D7–D8), with a triangle cap checked before allocating.
 //! - [`pn`]: PN triangles with the uniform or OpenGL ring pattern (thesis ch. 3–4, D10).
@@ -55,6 +56,7 @@ pub mod knots;
 pub mod mesh;
 pub mod pn;
 pub mod surface;
+pub mod sweep;
 pub mod tess;
 
 #[cfg(test)]

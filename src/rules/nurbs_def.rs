@@ -4,9 +4,12 @@
 //! and knot vectors. [`SurfaceDef::build`] evaluates them for one variant
 //! and hands them to [`crate::nurbs`], whose typed errors name the key.
 
+use crate::nurbs::curve::NurbsCurve;
 use crate::nurbs::error::{Field, NurbsError};
 use crate::nurbs::knots::clamped_uniform;
 use crate::nurbs::surface::NurbsSurface;
+pub use crate::nurbs::sweep::Orient;
+use crate::nurbs::sweep::{revolve, sweep};
 use crate::rules::program::Scalar;
 
 /// Most control points a net may have (checked before allocating).
@@ -18,12 +21,14 @@ pub const MAX_DEGREE: usize = crate::nurbs::error::MAX_DEGREE;
 /// Names a generator binds besides the parameters: the net indices.
 pub const GENERATOR_NAMES: [&str; 2] = ["i", "j"];
 
-/// A `[nurbs.NAME]` surface.
+/// A `[nurbs.NAME]` table: a surface, or a curve other surfaces are made
+/// of (a profile to revolve or sweep, a path to sweep along).
 #[derive(Debug, Clone)]
 pub struct SurfaceDef {
     pub name: String,
     /// `file:line:column` of its table.
     pub location: String,
+    pub kind: Kind,
     /// Degree along u and v.
     pub degree: [Scalar; 2],
     /// Control points along u and v.
@@ -33,6 +38,15 @@ pub struct SurfaceDef {
     pub weights: Option<Weights>,
     /// Knots along u, then v.
     pub knots: [Knots; 2],
+}
+
+/// What a `[nurbs.NAME]` table defines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Surface,
+    /// A curve (`size` one number): `degree[0]`, `size[0]`, `points` (a
+    /// list, or a generator over `i`), `weights` and `knots[0]` are its own.
+    Curve,
 }
 
 /// Control points, row-major (`i` along u slowest).
@@ -46,6 +60,16 @@ pub enum Points {
     /// then the profile's point count, `degree` its degree, `weights` its
     /// weights.
     Revolve(Profile),
+    /// A named curve (`profile`, index into the program's tables) swept
+    /// along another (`path`).
+    Sweep {
+        profile: usize,
+        path: usize,
+        orient: Orient,
+        /// How far the refined path's control polygon may stray from the
+        /// path (model units; `Follow` only).
+        tolerance: Scalar,
+    },
 }
 
 /// The profile of a surface of revolution.
@@ -54,31 +78,9 @@ pub enum Profile {
     /// `[r, z]` expressions over the parameters and `j`.
     Generator(Box<[Scalar; 2]>),
     List(Vec<[Scalar; 2]>),
-}
-
-/// The quadratic rational circle in nine points (Piegl & Tiller §7.5):
-/// corners of the unit square's midpoints and corners, weights 1 and √½.
-const CIRCLE: [[f64; 2]; 9] = [
-    [1.0, 0.0],
-    [1.0, 1.0],
-    [0.0, 1.0],
-    [-1.0, 1.0],
-    [-1.0, 0.0],
-    [-1.0, -1.0],
-    [0.0, -1.0],
-    [1.0, -1.0],
-    [1.0, 0.0],
-];
-const CIRCLE_KNOTS: [f64; 12] = [
-    0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0,
-];
-
-fn circle_weight(i: usize) -> f64 {
-    if i % 2 == 1 {
-        std::f64::consts::FRAC_1_SQRT_2
-    } else {
-        1.0
-    }
+    /// A named curve (index into the program's tables), drawn in the XZ
+    /// plane: x the radius, z the height.
+    Curve(usize),
 }
 
 #[derive(Debug, Clone)]
@@ -134,13 +136,102 @@ impl From<NurbsError> for SurfaceError {
     }
 }
 
+/// Net points a revolved profile may have (the circle takes nine rows).
+const MAX_PROFILE_POINTS: usize = MAX_NET_POINTS / 9;
+
 impl SurfaceDef {
     /// The surface with the parameters at `slots` (one value per
-    /// parameter, in slot order).
-    pub fn build(&self, slots: &[f64]) -> Result<NurbsSurface, SurfaceError> {
-        if let Points::Revolve(profile) = &self.points {
-            return self.revolve(profile, slots);
+    /// parameter, in slot order); `defs` are the program's tables, which
+    /// profiles and paths name.
+    pub fn build(&self, defs: &[SurfaceDef], slots: &[f64]) -> Result<NurbsSurface, SurfaceError> {
+        match &self.points {
+            _ if self.kind == Kind::Curve => Err(SurfaceError::new(
+                "size",
+                format!("`{}` is a curve, not a surface", self.name),
+            )),
+            Points::Revolve(profile) => self.revolve(profile, defs, slots),
+            Points::Sweep {
+                profile,
+                path,
+                orient,
+                tolerance,
+            } => {
+                let tolerance = tolerance.eval(slots);
+                if !(tolerance.is_finite() && tolerance > 0.0) {
+                    return Err(SurfaceError::new(
+                        "path_tolerance",
+                        format!("must be a positive number, got {tolerance}"),
+                    ));
+                }
+                let profile = named_curve(defs, *profile, "profile", slots)?;
+                let path = named_curve(defs, *path, "path", slots)?;
+                sweep(&profile, &path, *orient, tolerance)
+                    .map_err(|e| SurfaceError::new("path", e.to_string()))
+            }
+            Points::Generator(_) | Points::List(_) => self.net(slots),
         }
+    }
+
+    /// A curve table's curve with the parameters at `slots`.
+    pub fn build_curve(&self, slots: &[f64]) -> Result<NurbsCurve, SurfaceError> {
+        let degree = whole(self.degree[0].eval(slots), "degree", 1, MAX_DEGREE)?;
+        let points: Vec<[f64; 3]> = match &self.points {
+            Points::List(list) => list
+                .iter()
+                .map(|p| [p[0].eval(slots), p[1].eval(slots), p[2].eval(slots)])
+                .collect(),
+            Points::Generator(xyz) => {
+                let n = whole(self.size[0].eval(slots), "size", 2, MAX_NET_POINTS)?;
+                over_net(slots, [n, 1], |s| {
+                    [xyz[0].eval(s), xyz[1].eval(s), xyz[2].eval(s)]
+                })
+            }
+            _ => unreachable!("a curve has a list or a generator"),
+        };
+        if let Points::List(list) = &self.points {
+            let n = whole(self.size[0].eval(slots), "size", 2, MAX_NET_POINTS)?;
+            if n != list.len() {
+                return Err(SurfaceError::new(
+                    "size",
+                    format!("the curve lists {} points, `size` says {n}", list.len()),
+                ));
+            }
+        }
+        let weights = self.weights_for(slots, [points.len(), 1])?;
+        let knots = match &self.knots[0] {
+            Knots::ClampedUniform => clamped_uniform(degree, points.len(), Field::Degree)?,
+            Knots::List(list) => list.iter().map(|x| x.eval(slots)).collect(),
+        };
+        Ok(NurbsCurve::new(degree, knots, &points, weights.as_deref())?)
+    }
+
+    /// The weights at every net point (`None`: all 1).
+    fn weights_for(
+        &self,
+        slots: &[f64],
+        size: [usize; 2],
+    ) -> Result<Option<Vec<f64>>, SurfaceError> {
+        let count = size[0] * size[1];
+        Ok(match &self.weights {
+            None => None,
+            Some(Weights::Generator(w)) => Some(over_net(slots, size, |s| w.eval(s))),
+            Some(Weights::List(list)) => {
+                if list.len() != count {
+                    return Err(SurfaceError::new(
+                        "weights",
+                        format!(
+                            "there are {count} control points, the list has {} weights",
+                            list.len()
+                        ),
+                    ));
+                }
+                Some(list.iter().map(|w| w.eval(slots)).collect())
+            }
+        })
+    }
+
+    /// A surface given by its control net.
+    fn net(&self, slots: &[f64]) -> Result<NurbsSurface, SurfaceError> {
         let whole =
             |e: &Scalar, key: &str, min: usize, max: usize| whole(e.eval(slots), key, min, max);
         let degree = [
@@ -165,7 +256,6 @@ impl SurfaceDef {
             Points::Generator(xyz) => over_net(slots, size, |s| {
                 [xyz[0].eval(s), xyz[1].eval(s), xyz[2].eval(s)]
             }),
-            Points::Revolve(_) => unreachable!("built by revolve"),
             Points::List(list) => {
                 if list.len() != count {
                     return Err(SurfaceError::new(
@@ -182,6 +272,7 @@ impl SurfaceDef {
                     .map(|p| [p[0].eval(slots), p[1].eval(slots), p[2].eval(slots)])
                     .collect()
             }
+            _ => unreachable!("built by revolve or sweep"),
         };
         if let Some(k) = points.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
             return Err(SurfaceError::new(
@@ -194,22 +285,7 @@ impl SurfaceDef {
                 ),
             ));
         }
-        let weights: Option<Vec<f64>> = match &self.weights {
-            None => None,
-            Some(Weights::Generator(w)) => Some(over_net(slots, size, |s| w.eval(s))),
-            Some(Weights::List(list)) => {
-                if list.len() != count {
-                    return Err(SurfaceError::new(
-                        "weights",
-                        format!(
-                            "the net has {count} points, the list has {} weights",
-                            list.len()
-                        ),
-                    ));
-                }
-                Some(list.iter().map(|w| w.eval(slots)).collect())
-            }
-        };
+        let weights = self.weights_for(slots, size)?;
         let knots = |k: &Knots, d: usize, field: Field| -> Result<Vec<f64>, SurfaceError> {
             Ok(match k {
                 Knots::ClampedUniform => clamped_uniform(degree[d], size[d], field)?,
@@ -231,13 +307,36 @@ impl SurfaceDef {
     /// A surface of revolution: the profile (along v) swept about +Z by the
     /// exact circle (along u), closed in u, with a pole wherever the
     /// profile touches the axis.
-    fn revolve(&self, profile: &Profile, slots: &[f64]) -> Result<NurbsSurface, SurfaceError> {
-        let whole =
-            |e: &Scalar, key: &str, min: usize, max: usize| whole(e.eval(slots), key, min, max);
-        let degree = whole(&self.degree[1], "degree", 1, MAX_DEGREE)?;
+    fn revolve(
+        &self,
+        profile: &Profile,
+        defs: &[SurfaceDef],
+        slots: &[f64],
+    ) -> Result<NurbsSurface, SurfaceError> {
+        let curve = match profile {
+            Profile::Curve(k) => named_curve(defs, *k, "profile", slots)?,
+            Profile::List(_) | Profile::Generator(_) => self.profile_curve(profile, slots)?,
+        };
+        for (k, p) in curve.control_points().iter().enumerate() {
+            if !(p.x >= 0.0 && p.y == 0.0) {
+                return Err(SurfaceError::new(
+                    "profile",
+                    format!(
+                        "profile point {k} is ({}, {}, {}): a profile lies in the XZ plane (y = 0) with radius x ≥ 0",
+                        p.x, p.y, p.z
+                    ),
+                ));
+            }
+        }
+        Ok(revolve(&curve)?)
+    }
+
+    /// The `[r, z]` profile written in the table, as a curve in the XZ plane.
+    fn profile_curve(&self, profile: &Profile, slots: &[f64]) -> Result<NurbsCurve, SurfaceError> {
+        let degree = whole(self.degree[1].eval(slots), "degree", 1, MAX_DEGREE)?;
+        let n = whole(self.size[1].eval(slots), "size", 2, MAX_PROFILE_POINTS)?;
         let rz: Vec<[f64; 2]> = match profile {
             Profile::List(list) => {
-                let n = whole(&self.size[1], "size", 2, MAX_NET_POINTS / CIRCLE.len())?;
                 if n != list.len() {
                     return Err(SurfaceError::new(
                         "size",
@@ -248,10 +347,8 @@ impl SurfaceDef {
                     .map(|p| [p[0].eval(slots), p[1].eval(slots)])
                     .collect()
             }
-            Profile::Generator(rz) => {
-                let n = whole(&self.size[1], "size", 2, MAX_NET_POINTS / CIRCLE.len())?;
-                over_net(slots, [1, n], |s| [rz[0].eval(s), rz[1].eval(s)])
-            }
+            Profile::Generator(rz) => over_net(slots, [1, n], |s| [rz[0].eval(s), rz[1].eval(s)]),
+            Profile::Curve(_) => unreachable!("a named curve"),
         };
         if let Some(k) = rz
             .iter()
@@ -265,44 +362,37 @@ impl SurfaceDef {
                 ),
             ));
         }
-        let n = rz.len();
-        let profile_weights: Vec<f64> = match &self.weights {
-            None => vec![1.0; n],
-            Some(Weights::Generator(w)) => over_net(slots, [1, n], |s| w.eval(s)),
-            Some(Weights::List(list)) => {
-                if list.len() != n {
-                    return Err(SurfaceError::new(
-                        "weights",
-                        format!(
-                            "the profile has {n} points, the list has {} weights",
-                            list.len()
-                        ),
-                    ));
-                }
-                list.iter().map(|w| w.eval(slots)).collect()
-            }
-        };
-        let mut points = Vec::with_capacity(CIRCLE.len() * n);
-        let mut weights = Vec::with_capacity(CIRCLE.len() * n);
-        for (i, c) in CIRCLE.iter().enumerate() {
-            for (p, w) in rz.iter().zip(&profile_weights) {
-                points.push([p[0] * c[0], p[0] * c[1], p[1]]);
-                weights.push(circle_weight(i) * w);
-            }
-        }
-        let knots_v = match &self.knots[1] {
+        let weights = self.weights_for(slots, [1, n])?;
+        let knots = match &self.knots[1] {
             Knots::ClampedUniform => clamped_uniform(degree, n, Field::DegreeV)?,
             Knots::List(list) => list.iter().map(|x| x.eval(slots)).collect(),
         };
-        Ok(NurbsSurface::new(
-            [2, degree],
-            [CIRCLE.len(), n],
-            &points,
-            Some(&weights),
-            CIRCLE_KNOTS.to_vec(),
-            knots_v,
-        )?)
+        let points: Vec<[f64; 3]> = rz.iter().map(|p| [p[0], 0.0, p[1]]).collect();
+        NurbsCurve::new(degree, knots, &points, weights.as_deref()).map_err(|e| {
+            // The table writes the profile's knots as `knots_v`.
+            let mut e = SurfaceError::from(e);
+            if e.key == "knots" {
+                e.key = "knots_v".into();
+            }
+            e
+        })
     }
+}
+
+/// Curve `k` of the program's tables built, its errors reported at `key`.
+fn named_curve(
+    defs: &[SurfaceDef],
+    k: usize,
+    key: &str,
+    slots: &[f64],
+) -> Result<NurbsCurve, SurfaceError> {
+    let def = &defs[k];
+    def.build_curve(slots).map_err(|e| {
+        SurfaceError::new(
+            key,
+            format!("curve `{}`: {}: {}", def.name, e.key, e.message),
+        )
+    })
 }
 
 /// `f` at every net index, row-major, with `i` and `j` in the slots after

@@ -349,12 +349,11 @@ pub fn schema() -> Value {
         "nurbs_surface".into(),
         json!({
             "type": "object",
-            "description": "a NURBS surface (thesis 002 §1.2): degree, net size, control points (a list, or [x, y, z] expressions over the net indices i and j), weights, knots",
-            "required": ["degree"],
+            "description": "a NURBS surface (thesis 002 §1.2): degree, net size, control points (a list, or [x, y, z] expressions over the net indices i and j), weights, knots; a curve (one size); or a lathe or sweep of named curves",
             "additionalProperties": false,
             "properties": {
-                "degree": { "anyOf": [r("value"), r("pair")], "description": "degree along u and v, or one for both" },
-                "size": describe(r("pair"), "control points along u and v"),
+                "degree": { "anyOf": [r("value"), r("pair")], "description": "degree along u and v, or one for both (required but for a lathe or sweep of named curves)" },
+                "size": { "anyOf": [r("pair"), r("value")], "description": "control points along u and v; one number: a curve's point count" },
                 "points": { "anyOf": [
                     { "type": "array", "items": r("vector3"), "minItems": 4 },
                     { "type": "array", "items": r("value"), "minItems": 3, "maxItems": 3 } ],
@@ -365,9 +364,16 @@ pub fn schema() -> Value {
                     "description": "knots along u (\"clamped_uniform\")" },
                 "knots_v": { "anyOf": [ { "const": "clamped_uniform" }, { "type": "array", "items": r("value") } ],
                     "description": "knots along v (\"clamped_uniform\")" },
-                "profile": { "type": "array", "items": { "anyOf": [ r("value"),
-                    { "type": "array", "items": r("value"), "minItems": 2, "maxItems": 2 } ] },
-                    "description": "instead of points: [r, z] points revolved about +Z (a lathe), or one [r, z] of expressions over j" }
+                "profile": { "anyOf": [
+                    { "type": "array", "items": { "anyOf": [ r("value"),
+                        { "type": "array", "items": r("value"), "minItems": 2, "maxItems": 2 } ] } },
+                    { "type": "string", "minLength": 1 } ],
+                    "description": "instead of points: [r, z] points revolved about +Z (a lathe), one [r, z] of expressions over j, or the name of a curve (a lathe, or with `path` a sweep)" },
+                "knots": { "anyOf": [ { "const": "clamped_uniform" }, { "type": "array", "items": r("value") } ],
+                    "description": "a curve's knots (\"clamped_uniform\")" },
+                "path": { "type": "string", "minLength": 1, "description": "the curve a named profile is swept along" },
+                "orient": { "enum": ["follow", "fixed"], "description": "a sweep's profile turns with the path (follow) or is only translated (fixed)" },
+                "path_tolerance": describe(r("value"), "how far a follow sweep may stray from a true rotation-minimizing sweep (0.001)")
             }
         }),
     );

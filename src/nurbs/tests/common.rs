@@ -41,24 +41,12 @@ pub fn example_115() -> NurbsSurface {
 
 /// Control points and weights of the exact rational quadratic unit circle (9 points).
 pub fn circle() -> (Vec<[f64; 2]>, Vec<f64>, Vec<f64>) {
-    let c = vec![
-        [1.0, 0.0],
-        [1.0, 1.0],
-        [0.0, 1.0],
-        [-1.0, 1.0],
-        [-1.0, 0.0],
-        [-1.0, -1.0],
-        [0.0, -1.0],
-        [1.0, -1.0],
-        [1.0, 0.0],
-    ];
-    let w = (0..9)
-        .map(|i| if i % 2 == 1 { FRAC_1_SQRT_2 } else { 1.0 })
-        .collect();
-    let k = vec![
-        0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0,
-    ];
-    (c, w, k)
+    use crate::nurbs::sweep::{circle_weight, CIRCLE, CIRCLE_KNOTS};
+    (
+        CIRCLE.to_vec(),
+        (0..9).map(circle_weight).collect(),
+        CIRCLE_KNOTS.to_vec(),
+    )
 }
 
 /// Exact torus, major radius 3, minor radius 1: closed in both directions.

@@ -13,14 +13,35 @@ use super::{as_scalar, closest_in, Compiler};
 use crate::rules::ast::{self, ArgValue, Scalar as AstScalar};
 use crate::rules::diagnostic::RuleError;
 use crate::rules::expr::Expr;
-use crate::rules::nurbs_def::{Knots, Points, Profile, SurfaceDef, Weights, GENERATOR_NAMES};
+use crate::rules::nurbs_def::{
+    Kind, Knots, Orient, Points, Profile, SurfaceDef, Weights, GENERATOR_NAMES,
+};
 use crate::rules::program::{Param, Scalar};
 use crate::rules::spanned::Spanned;
 
 /// The keys a `[nurbs.NAME]` table takes.
-pub const SURFACE_KEYS: [&str; 7] = [
-    "degree", "size", "points", "weights", "knots_u", "knots_v", "profile",
+pub const SURFACE_KEYS: [&str; 11] = [
+    "degree",
+    "size",
+    "points",
+    "weights",
+    "knots_u",
+    "knots_v",
+    "profile",
+    "knots",
+    "path",
+    "orient",
+    "path_tolerance",
 ];
+
+/// The keys a curve takes (indices into [`SURFACE_KEYS`]).
+const CURVE_KEYS: [usize; 5] = [0, 1, 2, 3, 7];
+
+/// The keys a surface made of named curves takes besides `profile`.
+const SWEEP_KEYS: [usize; 3] = [8, 9, 10];
+
+/// `orient` of a sweep.
+const ORIENTS: [&str; 2] = ["follow", "fixed"];
 
 /// The knot shorthand.
 const CLAMPED_UNIFORM: &str = "clamped_uniform";
@@ -52,6 +73,15 @@ impl Compiler<'_> {
                 ),
             ));
         };
+        if let Some(k) = names.iter().position(|n| n == name) {
+            if is_curve_table(&self.nurbs_defs.0[k].1.value) {
+                return Err(self
+                    .error(value.span.clone(), format!("`{name}` is a curve, not a surface"))
+                    .with_help(format!(
+                        "make a surface of it: a [nurbs.NAME] table with profile = \"{name}\" (a lathe) or with a path to sweep it along"
+                    )));
+            }
+        }
         names.iter().position(|n| n == name).ok_or_else(|| {
             let e = self.error(
                 value.span.clone(),
@@ -68,7 +98,8 @@ impl Compiler<'_> {
     }
 
     fn surface(&self, name: &str, table: &Spanned<ast::Args>) -> Result<SurfaceDef, RuleError> {
-        let mut values: [Option<&Spanned<ArgValue>>; 7] = [None; 7];
+        let mut values: [Option<&Spanned<ArgValue>>; SURFACE_KEYS.len()] =
+            [None; SURFACE_KEYS.len()];
         for (key, value) in &table.value.0 {
             let Some(i) = SURFACE_KEYS.iter().position(|k| *k == key.value) else {
                 let listed: Vec<String> = SURFACE_KEYS.iter().map(|k| format!("`{k}`")).collect();
@@ -103,6 +134,102 @@ impl Compiler<'_> {
                 )
             })
         };
+        let refuse = |keys: &[usize], why: &str| -> Result<(), RuleError> {
+            match keys.iter().find_map(|&k| values[k]) {
+                Some(v) => Err(self.error(v.span.clone(), why.to_owned())),
+                None => Ok(()),
+            }
+        };
+        let location = self.location(table.span.as_ref());
+        let def = |kind, degree, size, points, weights, knots| SurfaceDef {
+            name: name.to_owned(),
+            location: location.clone(),
+            kind,
+            degree,
+            size,
+            points,
+            weights,
+            knots,
+        };
+        if is_curve_table(&table.value) {
+            let others: Vec<usize> = (0..SURFACE_KEYS.len())
+                .filter(|k| !CURVE_KEYS.contains(k))
+                .collect();
+            refuse(
+                &others,
+                "a curve (one `size`) takes degree, size, points, weights and knots",
+            )?;
+            let degree = self.param_scalar(required(0)?)?;
+            let points = self.points(required(2)?)?;
+            let size = match (&points, values[1]) {
+                (_, Some(s)) => self.param_scalar(s)?,
+                (Points::List(list), None) => self.number(list.len() as f64, None)?,
+                _ => {
+                    return Err(self.error(
+                        table.span.clone(),
+                        format!("missing field `size` of nurbs curve `{name}`: the number of points a generator makes"),
+                    ))
+                }
+            };
+            let weights = values[3].map(|w| self.weights(w)).transpose()?;
+            let knots = [self.knots(values[7])?, Knots::ClampedUniform];
+            return Ok(def(
+                Kind::Curve,
+                [degree.clone(), degree],
+                [size.clone(), size],
+                points,
+                weights,
+                knots,
+            ));
+        }
+        refuse(
+            &[7],
+            "a surface has `knots_u` and `knots_v`; `knots` is a curve's",
+        )?;
+        let named_profile =
+            values[6].filter(|p| matches!(p.value, ArgValue::Text(_) | ArgValue::Name(_)));
+        if let Some(profile) = named_profile {
+            // Everything comes from the named curves.
+            refuse(
+                &[0, 1, 2, 3, 4, 5],
+                "a surface made of named curves takes their degree, points, weights and knots",
+            )?;
+            let profile = self.curve_reference(profile)?;
+            let points = match values[8] {
+                Some(path) => Points::Sweep {
+                    profile,
+                    path: self.curve_reference(path)?,
+                    orient: match values[9] {
+                        Some(v) => self.orient(v)?,
+                        None => Orient::Follow,
+                    },
+                    tolerance: match values[10] {
+                        Some(t) => self.param_scalar(t)?,
+                        None => self.number(1e-3, None)?,
+                    },
+                },
+                None => {
+                    refuse(
+                        &[9, 10],
+                        "`orient` and `path_tolerance` belong to a sweep (give a `path`)",
+                    )?;
+                    Points::Revolve(Profile::Curve(profile))
+                }
+            };
+            let one = self.number(1.0, None)?;
+            return Ok(def(
+                Kind::Surface,
+                [one.clone(), one.clone()],
+                [one.clone(), one],
+                points,
+                None,
+                [Knots::ClampedUniform, Knots::ClampedUniform],
+            ));
+        }
+        refuse(
+            &SWEEP_KEYS,
+            "a sweep's `profile` and `path` are the names of [nurbs.NAME] curves",
+        )?;
         let (degree, size, points) = match (values[2], values[6]) {
             (Some(_), Some(profile)) => {
                 return Err(self.error(
@@ -120,14 +247,14 @@ impl Compiler<'_> {
                 let degree = self.param_scalar(required(0)?)?;
                 let profile = self.profile(profile)?;
                 let size = match (&profile, values[1]) {
-                    (Profile::Generator(_), None) => {
+                    (Profile::List(list), None) => self.number(list.len() as f64, None)?,
+                    (_, Some(s)) => self.param_scalar(s)?,
+                    _ => {
                         return Err(self.error(
                             table.span.clone(),
                             format!("missing field `size` of nurbs surface `{name}`: the number of profile points a generator makes"),
                         ))
                     }
-                    (_, Some(s)) => self.param_scalar(s)?,
-                    (Profile::List(list), None) => self.number(list.len() as f64, None)?,
                 };
                 (
                     [degree.clone(), degree],
@@ -143,15 +270,65 @@ impl Compiler<'_> {
         };
         let weights = values[3].map(|w| self.weights(w)).transpose()?;
         let knots = [self.knots(values[4])?, self.knots(values[5])?];
-        Ok(SurfaceDef {
-            name: name.to_owned(),
-            location: self.location(table.span.as_ref()),
-            degree,
-            size,
-            points,
-            weights,
-            knots,
-        })
+        Ok(def(Kind::Surface, degree, size, points, weights, knots))
+    }
+
+    /// The index of the curve a `profile` or `path` names.
+    fn curve_reference(&self, value: &Spanned<ArgValue>) -> Result<usize, RuleError> {
+        let (ArgValue::Text(name) | ArgValue::Name(name)) = &value.value else {
+            return Err(self.error(
+                value.span.clone(),
+                format!(
+                    "invalid type: {}, expected the name of a [nurbs.NAME] curve",
+                    value.value.describe()
+                ),
+            ));
+        };
+        let tables = &self.nurbs_defs.0;
+        let curves: Vec<&str> = tables
+            .iter()
+            .filter(|(_, t)| is_curve_table(&t.value))
+            .map(|(n, _)| n.value.as_str())
+            .collect();
+        match tables.iter().position(|(n, _)| n.value == *name) {
+            Some(k) if is_curve_table(&tables[k].1.value) => Ok(k),
+            Some(_) => Err(self
+                .error(value.span.clone(), format!("`{name}` is a surface, not a curve"))
+                .with_help("a curve is a [nurbs.NAME] table with one `size` (or a list of points) and one `degree`")),
+            None => {
+                let e = self.error(value.span.clone(), format!("no nurbs curve named `{name}`"));
+                Err(match closest_in(name, &curves) {
+                    Some(k) => e.with_help(format!("did you mean `{}`?", curves[k])),
+                    None if curves.is_empty() => e.with_help(
+                        "define it as a table [nurbs.NAME] with degree, size (one number) and points",
+                    ),
+                    None => e.with_help(format!("nurbs curves: {}", curves.join(", "))),
+                })
+            }
+        }
+    }
+
+    fn orient(&self, value: &Spanned<ArgValue>) -> Result<Orient, RuleError> {
+        match &value.value {
+            ArgValue::Text(t) | ArgValue::Name(t) if t == ORIENTS[0] => Ok(Orient::Follow),
+            ArgValue::Text(t) | ArgValue::Name(t) if t == ORIENTS[1] => Ok(Orient::Fixed),
+            other => Err(self
+                .error(
+                    value.span.clone(),
+                    match other {
+                        ArgValue::Text(t) | ArgValue::Name(t) => {
+                            format!("invalid orient `{t}`, expected \"follow\" or \"fixed\"")
+                        }
+                        _ => format!(
+                            "invalid orient: {}, expected \"follow\" or \"fixed\"",
+                            other.describe()
+                        ),
+                    },
+                )
+                .with_help(
+                    "follow: the profile turns with the path; fixed: it is only translated",
+                )),
+        }
     }
 
     /// `[a, b]`, or (when `one_for_both`) one value for both directions.
@@ -331,7 +508,11 @@ impl Compiler<'_> {
             return Ok(());
         };
         for (def, (_, table)) in surfaces.iter().zip(&self.nurbs_defs.0) {
-            if let Err(e) = def.build(&slots) {
+            let built = match def.kind {
+                Kind::Curve => def.build_curve(&slots).map(drop),
+                Kind::Surface => def.build(surfaces, &slots).map(drop),
+            };
+            if let Err(e) = built {
                 let span = table
                     .value
                     .0
@@ -339,9 +520,11 @@ impl Compiler<'_> {
                     .find(|(k, _)| k.value == e.key)
                     .and_then(|(k, v)| v.span.clone().or(k.span.clone()))
                     .or(table.span.clone());
-                return Err(
-                    self.error(span, format!("nurbs surface `{}`: {}", def.name, e.message))
-                );
+                let what = match def.kind {
+                    Kind::Curve => "curve",
+                    Kind::Surface => "surface",
+                };
+                return Err(self.error(span, format!("nurbs {what} `{}`: {}", def.name, e.message)));
             }
         }
         Ok(())
@@ -350,4 +533,23 @@ impl Compiler<'_> {
 
 fn is_scalar(v: &Spanned<ArgValue>) -> bool {
     matches!(v.value, ArgValue::Number(_) | ArgValue::Text(_))
+}
+
+/// A `[nurbs.NAME]` table is a curve when its `size` is one number, or when
+/// it has no `size` and its `points` is a list (a surface needs `[n_u, n_v]`).
+pub(crate) fn is_curve_table(table: &ast::Args) -> bool {
+    let get = |key: &str| {
+        table
+            .0
+            .iter()
+            .find(|(k, _)| k.value == key)
+            .map(|(_, v)| &v.value)
+    };
+    match get("size") {
+        Some(size) => !matches!(size, ArgValue::List(_)),
+        None => {
+            get("profile").is_none()
+                && matches!(get("points"), Some(ArgValue::List(items)) if items.iter().all(|p| matches!(p.value, ArgValue::List(_))))
+        }
+    }
 }

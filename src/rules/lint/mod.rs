@@ -359,7 +359,13 @@ impl<'a> Linter<'a> {
                 _ => {}
             }
         }
-        for (_, value) in &table.0 {
+        for (key, value) in &table.0 {
+            // Names of curves and choices, not expressions.
+            let named = matches!(key.value.as_str(), "path" | "orient")
+                || (key.value == "profile" && matches!(value.value, ArgValue::Text(_)));
+            if named {
+                continue;
+            }
             let mut found = Vec::new();
             strings(value, &mut found);
             for (v, text) in found {
