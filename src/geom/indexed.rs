@@ -8,6 +8,8 @@
 
 use std::collections::HashMap;
 
+use rustc_hash::FxHashMap;
+
 use glam::DVec3;
 
 use super::material::Material;
@@ -492,40 +494,52 @@ impl IndexedMesh {
         let mut map: Vec<u32> = Vec::with_capacity(n);
         let mut kept: Vec<u32> = Vec::new();
         if distance > 0.0 && distance.is_finite() {
-            let cell = distance;
-            let key = |p: &[f64; 3]| p.map(|x| (x / cell).floor() as i64);
-            let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+            // Cells of side 2d: every point within d of p lies in the cells
+            // [p − d, p + d] touches (widened by a millionth of a cell
+            // against rounding), two per axis — 8 cells searched, not 27.
+            // Each cell heads a list (threaded through `next`) of the kept
+            // vertices in it, newest first.
+            let side = 2.0 * distance;
+            let cell = |x: f64| (x / side).floor() as i64;
+            let reach = |x: f64, sign: f64| (x / side + sign * (0.5 + 1e-6)).floor() as i64;
+            let mut heads: FxHashMap<[i64; 3], u32> = FxHashMap::default();
+            heads.reserve(n);
+            let mut next: Vec<u32> = Vec::with_capacity(n);
+            kept.reserve(n);
             let d2 = distance * distance;
             for (i, p) in self.positions.iter().enumerate() {
-                let home = key(p);
                 let point = DVec3::from_array(*p);
-                let mut found: Option<u32> = None;
-                for dx in -1..=1i64 {
-                    for dy in -1..=1i64 {
-                        for dz in -1..=1i64 {
-                            let k = [
-                                home[0].saturating_add(dx),
-                                home[1].saturating_add(dy),
-                                home[2].saturating_add(dz),
-                            ];
-                            for &j in grid.get(&k).into_iter().flatten() {
-                                let q =
-                                    DVec3::from_array(self.positions[kept[j as usize] as usize]);
-                                if q.distance_squared(point) <= d2 {
-                                    found = Some(found.map_or(j, |f| f.min(j)));
+                let lo = p.map(|x| reach(x, -1.0));
+                let hi = p.map(|x| reach(x, 1.0));
+                let mut found = u32::MAX;
+                for cx in lo[0]..=hi[0] {
+                    for cy in lo[1]..=hi[1] {
+                        for cz in lo[2]..=hi[2] {
+                            let mut j = heads.get(&[cx, cy, cz]).copied().unwrap_or(u32::MAX);
+                            while j != u32::MAX {
+                                // Lists run newest first: every later entry is lower.
+                                if j < found {
+                                    let q = DVec3::from_array(
+                                        self.positions[kept[j as usize] as usize],
+                                    );
+                                    if q.distance_squared(point) <= d2 {
+                                        found = j;
+                                    }
                                 }
+                                j = next[j as usize];
                             }
                         }
                     }
                 }
-                let index = match found {
-                    Some(j) => j,
-                    None => {
-                        let j = kept.len() as u32;
-                        kept.push(i as u32);
-                        grid.entry(home).or_default().push(j);
-                        j
-                    }
+                let index = if found != u32::MAX {
+                    found
+                } else {
+                    let j = kept.len() as u32;
+                    kept.push(i as u32);
+                    let head = heads.entry(p.map(cell)).or_insert(u32::MAX);
+                    next.push(*head);
+                    *head = j;
+                    j
                 };
                 map.push(index);
             }

@@ -31,6 +31,8 @@ use super::indexed::IndexedMesh;
 pub struct Begin<'a> {
     pub vertices: usize,
     pub polygons: usize,
+    /// Polygon corners in all (0: not known; three per polygon assumed).
+    pub corners: usize,
     pub lines: usize,
     /// Names of the per-vertex scalars each [`MeshSink::vertex`] call
     /// carries, in order.
@@ -119,6 +121,7 @@ impl IndexedMesh {
             sink.begin(&Begin {
                 vertices: self.positions.len(),
                 polygons: self.polygon_count(),
+                corners: self.face_indices.len(),
                 lines: self.lines.len(),
                 scalars: &names,
             })?;

@@ -38,6 +38,13 @@ impl<T> Arena<T> {
         }
     }
 
+    /// Room for `additional` more elements without growing (when no slot
+    /// is free to reuse).
+    pub fn reserve(&mut self, additional: usize) {
+        self.slots
+            .reserve(additional.saturating_sub(self.free.len()));
+    }
+
     pub fn remove(&mut self, index: u32) -> Option<T> {
         let value = self.slots.get_mut(index as usize)?.take()?;
         self.free.push(Reverse(index));

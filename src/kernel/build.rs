@@ -88,6 +88,18 @@ impl MeshSink for KernelBuilder<'_> {
         }
         self.scalars = begin.scalars.iter().map(|n| n.to_string()).collect();
         self.verts.reserve(begin.vertices);
+        let corners = match begin.corners {
+            0 => begin.polygons.saturating_mul(3),
+            n => n,
+        };
+        // Edges: one per corner in a soup, half that in a closed mesh;
+        // reserve the half, so closed meshes never over-allocate.
+        self.mesh.reserve(
+            begin.vertices,
+            corners / 2 + begin.lines,
+            corners,
+            begin.polygons,
+        );
         Ok(())
     }
 
@@ -130,6 +142,14 @@ impl MeshSink for KernelBuilder<'_> {
         }
         while self.ring.len() > 1 && self.ring.first() == self.ring.last() {
             self.ring.pop();
+        }
+        if self.ring.len() >= 3 && !has_repeats(&self.ring) {
+            // The common case: a simple ring, made as it is.
+            match self.mesh.make_face(&self.ring) {
+                Ok(f) => self.faces.push(f),
+                Err(_) => self.report.degenerate_faces += 1,
+            }
+            return Ok(());
         }
         for piece in simple_loops(&self.ring) {
             match (piece.len() >= 3).then(|| self.mesh.make_face(&piece)) {
@@ -174,6 +194,19 @@ impl MeshSink for KernelBuilder<'_> {
 }
 
 /// Splits a ring that visits a vertex more than once into simple loops.
+/// Whether a ring visits a vertex twice.
+fn has_repeats(ring: &[VertId]) -> bool {
+    if ring.len() <= 16 {
+        return ring
+            .iter()
+            .enumerate()
+            .any(|(i, v)| ring[i + 1..].contains(v));
+    }
+    let mut sorted = ring.to_vec();
+    sorted.sort_unstable();
+    sorted.windows(2).any(|w| w[0] == w[1])
+}
+
 fn simple_loops(ring: &[VertId]) -> Vec<Vec<VertId>> {
     let mut out = Vec::new();
     let mut stack: Vec<VertId> = Vec::with_capacity(ring.len());
@@ -223,6 +256,7 @@ impl Mesh {
             sink.begin(&Begin {
                 vertices: self.vert_count(),
                 polygons: self.face_count(),
+                corners: self.loop_count(),
                 lines: wires.len(),
                 scalars: &names,
             })?;

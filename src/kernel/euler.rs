@@ -72,6 +72,31 @@ pub struct JoinMap {
     pub faces: Vec<Option<FaceId>>,
 }
 
+/// The lowest vertex a ring holds twice, if any. Small rings (nearly all)
+/// are compared pairwise, without allocating.
+fn repeated_vertex(ring: &[VertId]) -> Option<VertId> {
+    if ring.len() <= 8 {
+        let mut lowest: Option<VertId> = None;
+        for (i, &v) in ring.iter().enumerate() {
+            if ring[i + 1..].contains(&v) && lowest.is_none_or(|w| v < w) {
+                lowest = Some(v);
+            }
+        }
+        return lowest;
+    }
+    let mut sorted = ring.to_vec();
+    sorted.sort_unstable();
+    sorted.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
+}
+
+/// Whether an Euler operator refreshes the stored normals of the faces it
+/// changed, or leaves that to the operator that calls it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Normals {
+    Refresh,
+    Defer,
+}
+
 impl Mesh {
     // ---- checks ----
 
@@ -292,10 +317,8 @@ impl Mesh {
         for &v in ring {
             self.check_vert(v)?;
         }
-        let mut sorted = ring.to_vec();
-        sorted.sort_unstable();
-        if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
-            return Err(KernelError::RepeatedVertex(w[0]));
+        if let Some(v) = repeated_vertex(ring) {
+            return Err(KernelError::RepeatedVertex(v));
         }
         let f = FaceId(self.faces.insert(Face {
             first_loop: LoopId(0),
@@ -564,6 +587,16 @@ impl Mesh {
         keep: VertId,
         position: DVec3,
     ) -> Result<VertId, KernelError> {
+        self.collapse_edge_with(e, keep, position, Normals::Refresh)
+    }
+
+    fn collapse_edge_with(
+        &mut self,
+        e: EdgeId,
+        keep: VertId,
+        position: DVec3,
+        normals: Normals,
+    ) -> Result<VertId, KernelError> {
         self.check_edge(e)?;
         let [a, b] = self.edge_verts(e);
         if keep != a && keep != b {
@@ -594,7 +627,9 @@ impl Mesh {
         self.edges.remove(e.0);
         self.merge_vert_into(keep, gone);
         self.set_position(keep, position);
-        self.refresh_faces_around(keep);
+        if normals == Normals::Refresh {
+            self.refresh_faces_around(keep);
+        }
         Ok(keep)
     }
 
@@ -602,6 +637,27 @@ impl Mesh {
     /// is collapsed; otherwise they must not share a face. Edges that come to
     /// share both ends are merged. `keep` keeps its position.
     pub fn glue_verts(&mut self, keep: VertId, gone: VertId) -> Result<VertId, KernelError> {
+        self.glue_verts_with(keep, gone, Normals::Refresh)
+    }
+
+    /// [`Mesh::glue_verts`] leaving the stored normals of the faces around
+    /// `keep` as they were: for operators that glue many vertices and then
+    /// refresh each changed face once (issue 17: the soup weld computed
+    /// ≈ 10 normals per face).
+    pub(in crate::kernel) fn glue_verts_deferring_normals(
+        &mut self,
+        keep: VertId,
+        gone: VertId,
+    ) -> Result<VertId, KernelError> {
+        self.glue_verts_with(keep, gone, Normals::Defer)
+    }
+
+    fn glue_verts_with(
+        &mut self,
+        keep: VertId,
+        gone: VertId,
+        normals: Normals,
+    ) -> Result<VertId, KernelError> {
         self.check_vert(keep)?;
         self.check_vert(gone)?;
         if keep == gone {
@@ -609,11 +665,13 @@ impl Mesh {
         }
         if let Some(e) = self.find_edge(keep, gone) {
             let position = self.position(keep);
-            return self.collapse_edge(e, keep, position);
+            return self.collapse_edge_with(e, keep, position, normals);
         }
         self.check_glue(keep, gone, &[])?;
         self.merge_vert_into(keep, gone);
-        self.refresh_faces_around(keep);
+        if normals == Normals::Refresh {
+            self.refresh_faces_around(keep);
+        }
         Ok(keep)
     }
 
@@ -683,15 +741,14 @@ impl Mesh {
     /// Moves everything of `gone` onto `keep` and deletes `gone`. Callers
     /// have checked that no face holds both.
     fn merge_vert_into(&mut self, keep: VertId, gone: VertId) {
-        let corner_loops: Vec<LoopId> = self
-            .vert_edges(gone)
-            .flat_map(|e| self.edge_loops(e).collect::<Vec<_>>())
-            .filter(|&l| self.lp(l).vert == gone)
-            .collect();
+        let edges: Vec<EdgeId> = self.vert_edges(gone).collect();
+        let mut corner_loops: Vec<LoopId> = Vec::with_capacity(2 * edges.len());
+        for &e in &edges {
+            corner_loops.extend(self.edge_loops(e).filter(|&l| self.lp(l).vert == gone));
+        }
         for l in corner_loops {
             self.loop_mut(l).vert = keep;
         }
-        let edges: Vec<EdgeId> = self.vert_edges(gone).collect();
         for eg in edges {
             let other = self.edge_other_vert(eg, gone);
             self.disk_remove(eg, gone);

@@ -179,6 +179,16 @@ impl Mesh {
         self.faces.get_mut(f.0).expect("dead face id").normal = normal;
     }
 
+    /// Room for this many more elements of each kind, reserved once (an
+    /// import or a large generator knows its counts: growing the arenas
+    /// by doubling copies them and touches every page twice).
+    pub fn reserve(&mut self, verts: usize, edges: usize, loops: usize, faces: usize) {
+        self.verts.reserve(verts);
+        self.edges.reserve(edges);
+        self.loops.reserve(loops);
+        self.faces.reserve(faces);
+    }
+
     /// Recomputes every stored face normal.
     pub fn refresh_normals(&mut self) {
         let ids: Vec<FaceId> = self.face_ids().collect();

@@ -91,8 +91,9 @@ fn glb_reads_back_with_the_gltf_crate() {
         vec![[1.0, 1.0, -1.0], [2.0, 2.0, -2.0]],
         "turned Y-up"
     );
-    let wire_idx: Vec<u32> = wire.read_indices().unwrap().into_u32().collect();
-    assert_eq!(wire_idx, vec![0, 1]);
+    // Its indices would only count 0, 1: none are written.
+    assert!(wire.read_indices().is_none());
+    assert!(prims[1].indices().is_none());
     let wire_acc = prims[1].get(&::gltf::Semantic::Positions).unwrap();
     assert_eq!(wire_acc.min().unwrap(), serde_json::json!([1.0, 1.0, -2.0]));
     assert_eq!(wire_acc.max().unwrap(), serde_json::json!([2.0, 2.0, -1.0]));
@@ -241,8 +242,10 @@ fn large_meshes_switch_to_u32_indices() {
     for i in 0..n {
         m.positions.push([f64::from(i), f64::from(i % 7), 0.0]);
     }
-    for i in 0..n / 3 {
-        m.push_polygon(&[3 * i, 3 * i + 1, 3 * i + 2]);
+    // A strip: each vertex in three triangles, so the index buffer is not
+    // the identity.
+    for i in 0..n - 2 {
+        m.push_polygon(&[i, i + 1, i + 2]);
     }
     let bytes = encode_glb(&m).unwrap();
     let v = parse_json(&bytes);
@@ -250,6 +253,24 @@ fn large_meshes_switch_to_u32_indices() {
     assert_eq!(v["accessors"][idx]["componentType"], 5125);
     let back = decode(&bytes, p()).unwrap();
     assert_eq!(back.polygon_count(), m.polygon_count());
+}
+
+#[test]
+fn a_soup_is_written_without_an_index_buffer() {
+    let mut m = IndexedMesh::new();
+    for i in 0..30u32 {
+        m.positions
+            .push([f64::from(i), f64::from(i % 3), f64::from(i % 5)]);
+    }
+    for i in 0..10 {
+        m.push_polygon(&[3 * i, 3 * i + 1, 3 * i + 2]);
+    }
+    let bytes = encode_glb(&m).unwrap();
+    let v = parse_json(&bytes);
+    assert!(v["meshes"][0]["primitives"][0].get("indices").is_none());
+    let back = decode(&bytes, p()).unwrap();
+    assert_eq!(back.polygon_count(), 10);
+    assert_eq!(back.positions.len(), 30);
 }
 
 #[test]

@@ -15,34 +15,34 @@ pub fn encode_gltf(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
 /// chunk padded with spaces and the binary chunk, written once into the
 /// output (glTF 2.0 §4.4; no intermediate copy of the buffer).
 pub fn encode_glb(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    let (json, bin) = build(mesh, false)?;
+    let (json, mut bin) = build(mesh, false)?;
     let json_len = json.len().next_multiple_of(4);
-    let bin_bytes: &[u8] = bytemuck::cast_slice(&bin);
-    let bin_chunk = if bin_bytes.is_empty() {
-        0
-    } else {
-        8 + bin_bytes.len()
-    };
+    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
     let total = 12 + 8 + json_len + bin_chunk;
     let too_big = || IoError::InvalidMesh {
         message: format!("GLB container: {total} bytes exceed the format's 4 GiB"),
     };
     let total32 = u32::try_from(total).map_err(|_| too_big())?;
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&total32.to_le_bytes());
-    out.extend_from_slice(&(json_len as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.resize(20 + json_len, b' ');
-    if !bin_bytes.is_empty() {
-        out.extend_from_slice(&(bin_bytes.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(bin_bytes);
+    let mut front = Vec::with_capacity(28 + json_len);
+    front.extend_from_slice(b"glTF");
+    front.extend_from_slice(&2u32.to_le_bytes());
+    front.extend_from_slice(&total32.to_le_bytes());
+    front.extend_from_slice(&(json_len as u32).to_le_bytes());
+    front.extend_from_slice(b"JSON");
+    front.extend_from_slice(&json);
+    front.resize(20 + json_len, b' ');
+    if bin.is_empty() {
+        return Ok(front);
     }
-    Ok(out)
+    front.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    front.extend_from_slice(b"BIN\0");
+    // The buffer was reserved with room for this in front: one move, no copy.
+    bin.splice(0..0, front);
+    Ok(bin)
 }
+
+/// Bytes reserved in front of the binary buffer for the GLB header and JSON.
+const GLB_FRONT_ROOM: usize = 64 * 1024;
 
 pub(super) fn to_f32(p: [f64; 3]) -> [f32; 3] {
     // Range checked by the caller; -0 is normalized so equal geometry gives equal bytes.
@@ -150,16 +150,36 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
             if polygons.is_empty() {
                 continue;
             }
+            // At most one vertex per corner, and three indices per corner
+            // beyond the second of each polygon: reserved once.
+            let corners: usize = polygons
+                .iter()
+                .map(|&k| mesh.polygon(k as usize).len())
+                .sum();
             let mut draw = Draw {
                 mode: Mode::Triangles,
                 material: (!mesh.materials.is_empty()).then_some(material as u32),
-                vertices: Vec::new(),
-                indices: Vec::new(),
+                vertices: Vec::with_capacity(corners),
+                indices: Vec::with_capacity(3 * (corners - 2 * polygons.len())),
             };
+            sharing.next.reserve(corners);
+            let smooth = !mesh.corner_normals.is_empty();
             for &k in polygons {
                 let k = k as usize;
                 let poly = mesh.polygon(k);
-                let flat = unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z));
+                // The flat normal only where no corner normal is given; a
+                // triangle is its own triangulation.
+                let flat = if smooth {
+                    tri.triangles.clear();
+                    if poly.len() == 3 {
+                        tri.triangles.push([0, 1, 2]);
+                    } else {
+                        tri.run(mesh, poly);
+                    }
+                    [0.0; 3]
+                } else {
+                    unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z))
+                };
                 let first = mesh.face_starts[k] as usize;
                 local.clear();
                 for (i, &v) in poly.iter().enumerate() {
@@ -223,12 +243,20 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
     Ok(out)
 }
 
-/// The binary buffer as little-endian 32-bit words (4-byte alignment for free).
-pub(super) struct Words(pub Vec<u32>);
+/// The binary buffer, little-endian; every view starts 4-byte aligned.
+pub(super) struct Words(pub Vec<u8>);
 
 impl Words {
     fn floats(&mut self, values: impl Iterator<Item = f32>) {
-        self.0.extend(values.map(f32::to_bits));
+        for x in values {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    fn words(&mut self, values: impl Iterator<Item = u32>) {
+        for x in values {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
     }
 }
 
@@ -242,7 +270,7 @@ pub(super) struct Builder {
 
 impl Builder {
     /// Appends a bufferView + accessor over `data` (already pushed from
-    /// word `start`); returns the accessor.
+    /// byte `start`); returns the accessor.
     fn accessor(
         &mut self,
         start: usize,
@@ -265,7 +293,7 @@ impl Builder {
         let view = self.root.push(json::buffer::View {
             buffer: Index::new(0),
             byte_length: USize64(byte_length as u64),
-            byte_offset: (start > 0).then_some(USize64(4 * start as u64)),
+            byte_offset: (start > 0).then_some(USize64(start as u64)),
             byte_stride: None,
             name: None,
             target: Some(Checked::Valid(target)),
@@ -349,32 +377,42 @@ impl Builder {
             ));
         }
         self.custom.push(custom);
-        // u16 indices while the largest index (n - 1) stays below the restart value.
-        let start = self.words.0.len();
-        let component = if n > usize::from(u16::MAX) {
-            self.words.0.extend_from_slice(&draw.indices);
-            ComponentType::U32
-        } else {
-            // Two u16 per word, the first in the low half (little-endian byte order).
-            self.words.0.extend(
-                draw.indices
-                    .chunks(2)
-                    .map(|pair| pair[0] | pair.get(1).map_or(0, |&b| b << 16)),
-            );
-            ComponentType::U16
-        };
-        let indices = self.accessor(
-            start,
-            draw.indices.len(),
-            component,
-            Type::Scalar,
-            ElementArrayBuffer,
-        );
+        // No index buffer where it would only count 0, 1, 2, … (every corner
+        // its own vertex: a soup, or flat normals on a smooth surface).
+        let identity = draw.indices.len() == n
+            && draw
+                .indices
+                .iter()
+                .enumerate()
+                .all(|(i, &x)| x as usize == i);
+        let indices = (!identity).then(|| {
+            // u16 indices while the largest index (n - 1) stays below the restart value.
+            let start = self.words.0.len();
+            let component = if n > usize::from(u16::MAX) {
+                self.words.words(draw.indices.iter().copied());
+                ComponentType::U32
+            } else {
+                for &i in &draw.indices {
+                    self.words.0.extend_from_slice(&(i as u16).to_le_bytes());
+                }
+                // The next view starts 4-byte aligned.
+                let padded = self.words.0.len().next_multiple_of(4);
+                self.words.0.resize(padded, 0);
+                ComponentType::U16
+            };
+            self.accessor(
+                start,
+                draw.indices.len(),
+                component,
+                Type::Scalar,
+                ElementArrayBuffer,
+            )
+        });
         json::mesh::Primitive {
             attributes,
             extensions: Default::default(),
             extras: Default::default(),
-            indices: Some(indices),
+            indices,
             material: draw
                 .material
                 .and_then(|m| material_indices.get(m as usize).copied()),
@@ -442,14 +480,14 @@ fn material_json(m: &Material) -> json::Material {
     }
 }
 
-/// Builds the document: (JSON bytes, binary buffer as little-endian words). With `embed`, the
+/// Builds the document: (JSON bytes, binary buffer). With `embed`, the
 /// buffer is a data URI in the JSON and the returned buffer is empty.
 ///
 /// One node and one mesh per part (named after it, in part order), one
 /// primitive per material the part uses plus one of its wire edges;
 /// vertices are shared within a primitive where position, normal, texture
 /// coordinates and colour agree.
-pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32>), IoError> {
+pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u8>), IoError> {
     mesh.validate()?;
     mesh.check_f32_range("glTF")?;
     let scalars = mesh.sorted_scalars();
@@ -493,7 +531,9 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
             },
             ..Default::default()
         },
-        words: Words(Vec::with_capacity(words)),
+        // Room in front for the GLB header and JSON, moved in at the end
+        // (one buffer, no second copy; a larger JSON only reallocates).
+        words: Words(Vec::with_capacity(4 * words + GLB_FRONT_ROOM)),
         custom: Vec::new(),
     };
     // Every material is written, in index order, used or not.
@@ -532,12 +572,8 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u32
         nodes: scene_nodes,
     });
     b.root.scene = Some(scene);
-    let mut bin = std::mem::take(&mut b.words.0);
-    // The words hold little-endian data; make that true in memory on big-endian hosts too.
-    for w in &mut bin {
-        *w = w.to_le();
-    }
-    let bytes: &[u8] = bytemuck::cast_slice(&bin);
+    let bin = std::mem::take(&mut b.words.0);
+    let bytes: &[u8] = &bin;
     if !bytes.is_empty() {
         b.root.push(json::Buffer {
             byte_length: USize64(bytes.len() as u64),

@@ -54,12 +54,9 @@ impl Selection {
 
     /// Sorts and deduplicates every list (the canonical form).
     pub fn normalize(&mut self) {
-        self.verts.sort_unstable();
-        self.verts.dedup();
-        self.edges.sort_unstable();
-        self.edges.dedup();
-        self.faces.sort_unstable();
-        self.faces.dedup();
+        sort_ids(&mut self.verts);
+        sort_ids(&mut self.edges);
+        sort_ids(&mut self.faces);
     }
 
     /// Builds a canonical selection from unordered lists.
@@ -86,6 +83,16 @@ impl Selection {
         self.edges.extend_from_slice(&other.edges);
         self.faces.extend_from_slice(&other.faces);
     }
+}
+
+/// Sorts and dedups ids, in one linear pass when they are already strictly
+/// ascending (what most operators produce: new ids come in slot order).
+fn sort_ids<T: Ord + Copy>(ids: &mut Vec<T>) {
+    if ids.windows(2).all(|w| w[0] < w[1]) {
+        return;
+    }
+    ids.sort_unstable();
+    ids.dedup();
 }
 
 /// Why a high-level operator failed.

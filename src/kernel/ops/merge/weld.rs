@@ -47,9 +47,7 @@ pub(in crate::kernel::ops) fn weld_gone(
     if gone.is_empty() {
         return Ok(result);
     }
-    let mut affected: Vec<FaceId> = gone.iter().flat_map(|&(v, _)| mesh.vert_faces(v)).collect();
-    affected.sort_unstable();
-    affected.dedup();
+    let affected = faces_around(mesh, &gone);
 
     let face_layers: Vec<String> = mesh
         .attributes()
@@ -96,8 +94,12 @@ pub(in crate::kernel::ops) fn weld_gone(
         if mesh.vert_degree(v) == 0 {
             mesh.kill_vert(v)?;
         } else {
-            mesh.glue_verts(keep, v)?;
+            mesh.glue_verts_deferring_normals(keep, v)?;
         }
+    }
+    // Each surviving face that lost a corner to a glue, refreshed once.
+    for &f in &clean {
+        mesh.refresh_normal(f);
     }
     // Step 3: welded twins.
     let is_affected = |g: FaceId| affected.binary_search(&g).is_ok();
@@ -218,4 +220,29 @@ pub(super) fn simple_cycles(mut ring: Vec<VertId>) -> Vec<Vec<VertId>> {
         out.push(path);
     }
     out
+}
+
+/// The faces around the glued vertices, ascending, each once. A large weld
+/// marks them in a slot-indexed table and scans it (linear); a small one
+/// sorts what it found.
+fn faces_around(mesh: &Mesh, gone: &[(VertId, VertId)]) -> Vec<FaceId> {
+    let capacity = mesh.face_capacity();
+    if gone.len().saturating_mul(16) < capacity {
+        let mut found: Vec<FaceId> = gone.iter().flat_map(|&(v, _)| mesh.vert_faces(v)).collect();
+        found.sort_unstable();
+        found.dedup();
+        return found;
+    }
+    let mut marked = vec![false; capacity];
+    for &(v, _) in gone {
+        for f in mesh.vert_faces(v) {
+            marked[f.index()] = true;
+        }
+    }
+    marked
+        .iter()
+        .enumerate()
+        .filter(|(_, &m)| m)
+        .map(|(i, _)| FaceId::from_index(i))
+        .collect()
 }
