@@ -31,7 +31,9 @@
 //! outer edge's, inner and ring faces the original face's.
 
 use glam::DVec3;
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashSet;
+
+use super::side_table::SideTable;
 
 use super::{canonical, OpError, Selection};
 use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
@@ -254,12 +256,12 @@ pub fn inset_region(
     for &f in &faces {
         mesh.check_face(f)?;
     }
-    // Hashed side tables keep the cost proportional to the region, not to
-    // the mesh.
-    let face_normal: FxHashMap<FaceId, DVec3> = faces
-        .iter()
-        .map(|&f| (f, mesh.compute_face_normal(f)))
-        .collect();
+    // Side tables: slot-indexed for a big region, hashed for a small one
+    // (the cost stays proportional to the region).
+    let mut face_normal: SideTable<DVec3> = SideTable::new(faces.len(), mesh.face_capacity());
+    for &f in &faces {
+        face_normal.insert(f.index(), mesh.compute_face_normal(f));
+    }
     let region_edges = canonical(
         &faces
             .iter()
@@ -282,21 +284,19 @@ pub fn inset_region(
         leaving: Vec<(DVec3, DVec3)>,
         rate: DVec3,
     }
-    let mut corners: FxHashMap<VertId, Corner> = region_verts
-        .iter()
-        .map(|&v| {
-            let normal = mesh
-                .vert_faces(v)
-                .filter_map(|f| face_normal.get(&f).copied())
-                .sum::<DVec3>()
-                .normalize_or_zero();
-            let corner = Corner {
-                normal,
-                ..Corner::default()
-            };
-            (v, corner)
-        })
-        .collect();
+    let mut corners: SideTable<Corner> = SideTable::new(region_verts.len(), mesh.vert_capacity());
+    for &v in &region_verts {
+        let normal = mesh
+            .vert_faces(v)
+            .filter_map(|f| face_normal.get(f.index()).copied())
+            .sum::<DVec3>()
+            .normalize_or_zero();
+        let corner = Corner {
+            normal,
+            ..Corner::default()
+        };
+        corners.insert(v.index(), corner);
+    }
 
     // Boundary edges, run x → y as their one region face runs them.
     struct Boundary {
@@ -309,18 +309,21 @@ pub fn inset_region(
     for &e in &region_edges {
         let loops: Vec<_> = mesh
             .edge_loops(e)
-            .filter(|&l| face_normal.contains_key(&mesh.lp(l).face))
+            .filter(|&l| face_normal.contains(mesh.lp(l).face.index()))
             .collect();
         if let [only] = loops[..] {
             let x = mesh.lp(only).vert;
             let y = mesh.edge_other_vert(e, x);
             let face = mesh.lp(only).face;
             let u = (mesh.position(y) - mesh.position(x)).normalize_or_zero();
-            let m = face_normal[&face].cross(u);
-            if let Some(c) = corners.get_mut(&x) {
+            let m = face_normal
+                .get(face.index())
+                .expect("a region face")
+                .cross(u);
+            if let Some(c) = corners.get_mut(x.index()) {
                 c.leaving.push((u, m));
             }
-            if let Some(c) = corners.get_mut(&y) {
+            if let Some(c) = corners.get_mut(y.index()) {
                 c.arriving.push((u, m));
             }
             boundary.push(Boundary { x, y, face });
@@ -328,7 +331,11 @@ pub fn inset_region(
         }
     }
     let on_outline = |c: &Corner| !(c.arriving.is_empty() && c.leaving.is_empty());
-    for c in corners.values_mut().filter(|c| on_outline(c)) {
+    for &v in &region_verts {
+        let c = corners.get_mut(v.index()).expect("a region vertex");
+        if !on_outline(c) {
+            continue;
+        }
         let n = c.normal;
         let flat = |d: DVec3| (d - n * d.dot(n)).normalize_or_zero();
         c.rate = match (&c.arriving[..], &c.leaving[..]) {
@@ -341,6 +348,7 @@ pub fn inset_region(
             }
         };
     }
+    let corner = |v: VertId| corners.get(v.index()).expect("a region vertex");
     let t = clamp_to_first_edge_event(
         thickness,
         region_edges.iter().map(|&e| {
@@ -348,27 +356,27 @@ pub fn inset_region(
             (
                 mesh.position(a),
                 mesh.position(b),
-                corners[&a].rate,
-                corners[&b].rate,
+                corner(a).rate,
+                corner(b).rate,
             )
         }),
     );
     let targets: Vec<DVec3> = region_verts
         .iter()
         .map(|&v| {
-            let c = &corners[&v];
+            let c = corner(v);
             mesh.position(v) + c.rate * t + c.normal * depth
         })
         .collect();
     check_targets(&targets)?;
-    let is_boundary = |v: VertId| corners.get(&v).is_some_and(on_outline);
+    let is_boundary = |v: VertId| corners.get(v.index()).is_some_and(on_outline);
 
     let mut result = Selection::new();
-    let mut inner_of: FxHashMap<VertId, VertId> = FxHashMap::default();
+    let mut inner_of: SideTable<VertId> = SideTable::new(region_verts.len(), mesh.vert_capacity());
     for (&v, &p) in region_verts.iter().zip(&targets) {
         if is_boundary(v) {
             let (spoke, w) = mesh.make_edge_vert(v, p)?;
-            inner_of.insert(v, w);
+            inner_of.insert(v.index(), w);
             result.verts.push(w);
             result.edges.push(spoke);
         } else {
@@ -376,11 +384,14 @@ pub fn inset_region(
         }
     }
     // Interior vertices are their own inner vertex.
-    let inner = |v: VertId| inner_of.get(&v).copied().unwrap_or(v);
+    let inner = |v: VertId| inner_of.get(v.index()).copied().unwrap_or(v);
     let mut rebuilt = Vec::new();
     for &f in &faces {
         if !mesh.face_verts(f).any(is_boundary) {
-            mesh.refresh_normal(f);
+            // Its vertices are interior: they moved only by `depth`.
+            if depth != 0.0 {
+                mesh.refresh_normal(f);
+            }
             result.faces.push(f);
             continue;
         }

@@ -35,6 +35,7 @@ pub mod grid_fill;
 pub mod inset;
 pub mod merge;
 pub mod select;
+pub(crate) mod side_table;
 pub mod skin;
 pub mod split;
 pub mod transform;
@@ -117,7 +118,6 @@ impl OpError {
 /// order so their results do not depend on the order the caller gave.
 pub(crate) fn canonical<T: Ord + Copy>(ids: &[T]) -> Vec<T> {
     let mut v = ids.to_vec();
-    v.sort_unstable();
-    v.dedup();
+    sort_ids(&mut v);
     v
 }
