@@ -389,22 +389,13 @@ impl IndexedMesh {
             if self.materials[index].double_sided.is_some() {
                 continue;
             }
-            let mut edges: Vec<(u32, u32, bool)> = Vec::new();
-            for (k, poly) in self.polygons().enumerate() {
-                if self.polygon_material(k) != Some(index as u32) {
-                    continue;
-                }
-                for (i, &a) in poly.iter().enumerate() {
-                    let b = poly[(i + 1) % poly.len()];
-                    edges.push((a.min(b), a.max(b), a < b));
-                }
-            }
-            edges.sort_unstable();
-            let closed = !edges.is_empty()
-                && edges.len() % 2 == 0
-                && edges.chunks(2).all(|pair| {
-                    (pair[0].0, pair[0].1) == (pair[1].0, pair[1].1) && pair[0].2 != pair[1].2
-                });
+            let polygons = self
+                .polygons()
+                .enumerate()
+                .filter(|&(k, _)| self.polygon_material(k) == Some(index as u32))
+                .map(|(_, poly)| poly)
+                .collect::<Vec<_>>();
+            let closed = closed_and_oriented(self.positions.len(), polygons.iter().copied());
             self.materials[index].double_sided = Some(!closed);
         }
     }
@@ -438,6 +429,49 @@ impl IndexedMesh {
         }
         Ok(())
     }
+}
+
+/// Whether every edge of `polygons` is met exactly twice, once each way: a
+/// closed, consistently oriented surface. Linear: each vertex's outgoing
+/// half-edges are gathered (counting sort by their start), and each
+/// half-edge a → b must be the only one of its kind and find b → a.
+fn closed_and_oriented<'a>(
+    vertices: usize,
+    polygons: impl Iterator<Item = &'a [u32]> + Clone,
+) -> bool {
+    let mut start = vec![0u32; vertices + 1];
+    let mut corners = 0usize;
+    for poly in polygons.clone() {
+        for &a in poly {
+            start[a as usize + 1] += 1;
+        }
+        corners += poly.len();
+    }
+    if corners == 0 {
+        return false;
+    }
+    for v in 0..vertices {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut to = vec![0u32; corners];
+    for poly in polygons {
+        for (i, &a) in poly.iter().enumerate() {
+            let b = poly[(i + 1) % poly.len()];
+            if a == b {
+                return false;
+            }
+            to[fill[a as usize] as usize] = b;
+            fill[a as usize] += 1;
+        }
+    }
+    let out = |v: u32| &to[start[v as usize] as usize..start[v as usize + 1] as usize];
+    (0..vertices as u32).all(|a| {
+        let from_a = out(a);
+        from_a.iter().enumerate().all(|(i, &b)| {
+            !from_a[i + 1..].contains(&b) && out(b).iter().filter(|&&c| c == a).count() == 1
+        })
+    })
 }
 
 /// Which axis points up in a file. graftal's kernel is Z-up; glTF is
