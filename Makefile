@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench contact-sheet clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers contact-sheet clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -56,6 +56,15 @@ contact-sheet:
 ## Criterion benchmarks (release).
 bench:
 	$(CARGO) bench
+
+## Peer benchmarks, not part of CI: graftal beside Blender's bmesh, libigl,
+## trimesh, CGAL, geomdl, splinepy and curvo on the same inputs (median table
+## in target/bench-peers/results.md). Installs its peers under
+## target/bench-peers (venv, apt Blender); ~10 min. Options go in
+## BENCH_PEERS_ARGS, e.g. "--runs 3 --only merge,glb --with-occt" (see bench-peers/README.md).
+bench-peers:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal python3 bench-peers/run.py $(BENCH_PEERS_ARGS)
 
 clean:
 	rm -rf $(OUT)

@@ -1,0 +1,133 @@
+"""Blender's bmesh on the mesh workloads, run headless:
+
+    blender -b --factory-startup --python bench-peers/bmesh_bench.py -- SITE OP ARGS
+
+SITE is the bench venv's site-packages (Debian's Blender has no numpy).
+OP ARGS is one of: merge soup.npz | selfx selfx.npz | grid N | inset N T |
+extrude N | triangulate N | mirror N. Grids have N × N cells of 0.01
+(bmesh's `size` is half the extent). Blender stores float32 coordinates.
+"""
+
+import os
+import sys
+
+SPACING = 0.01
+
+
+def args():
+    return sys.argv[sys.argv.index("--") + 1 :]
+
+
+sys.path[:0] = [args()[0], os.path.dirname(os.path.abspath(__file__))]
+
+import bmesh  # noqa: E402
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+from mathutils.bvhtree import BVHTree  # noqa: E402
+
+from benchlib import emit, load, timed  # noqa: E402
+
+
+def from_arrays(verts, faces):
+    """A bmesh of triangles through a Mesh's foreach_set (fast, untimed)."""
+    me = bpy.data.meshes.new("input")
+    me.vertices.add(len(verts))
+    me.vertices.foreach_set("co", verts.astype(np.float32).ravel())
+    me.loops.add(faces.size)
+    me.loops.foreach_set("vertex_index", faces.astype(np.int32).ravel())
+    me.polygons.add(len(faces))
+    me.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
+    me.polygons.foreach_set("loop_total", np.full(len(faces), 3, dtype=np.int32))
+    me.update()
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    return bm
+
+
+def grid(n):
+    bm = bmesh.new()
+    bmesh.ops.create_grid(bm, x_segments=n, y_segments=n, size=n * SPACING / 2)
+    return bm
+
+
+def report(seconds, bm, **extra):
+    emit(seconds, len(bm.verts), len(bm.faces), **extra)
+
+
+def merge(path):
+    bm = from_arrays(*load(path))
+    seconds, _ = timed(bmesh.ops.remove_doubles, bm, verts=bm.verts[:], dist=1e-4)
+    report(seconds, bm)
+
+
+def selfx(path):
+    """BVH overlap with itself gives each pair twice, in both orders. It also
+    reports some neighbours that only share a vertex: counted apart."""
+    bm = from_arrays(*load(path))
+
+    def overlap():
+        tree = BVHTree.FromBMesh(bm)
+        return tree.overlap(tree)
+
+    seconds, found = timed(overlap)
+    pairs = {(min(a, b), max(a, b)) for a, b in found if a != b}
+    bm.faces.ensure_lookup_table()
+    sharing = sum(1 for a, b in pairs if set(bm.faces[a].verts) & set(bm.faces[b].verts))
+    report(seconds, bm, pairs=len(pairs), sharing_vertex=sharing)
+
+
+def create(n):
+    bm = bmesh.new()
+    seconds, _ = timed(
+        bmesh.ops.create_grid, bm, x_segments=int(n), y_segments=int(n), size=int(n) * SPACING / 2
+    )
+    report(seconds, bm)
+
+
+def inset(n, thickness):
+    bm = grid(int(n))
+    seconds, _ = timed(
+        bmesh.ops.inset_region,
+        bm,
+        faces=bm.faces[:],
+        thickness=float(thickness),
+        use_boundary=True,
+        use_even_offset=True,
+    )
+    report(seconds, bm)
+
+
+def extrude(n):
+    """Geometry only: graftal's step also moves the new faces by its distance."""
+    bm = grid(int(n))
+    seconds, _ = timed(bmesh.ops.extrude_discrete_faces, bm, faces=bm.faces[:])
+    report(seconds, bm)
+
+
+def triangulate(n):
+    bm = grid(int(n))
+    seconds, _ = timed(bmesh.ops.triangulate, bm, faces=bm.faces[:])
+    report(seconds, bm)
+
+
+def mirror(n):
+    """Mirror across x = 0, the grid's left border, welding the seam."""
+    bm = grid(int(n))
+    bmesh.ops.translate(bm, verts=bm.verts[:], vec=(int(n) * SPACING / 2, 0, 0))
+    geom = bm.verts[:] + bm.edges[:] + bm.faces[:]
+    seconds, _ = timed(bmesh.ops.mirror, bm, geom=geom, axis="X", merge_dist=1e-5)
+    report(seconds, bm)
+
+
+OPS = {
+    "merge": merge,
+    "selfx": selfx,
+    "grid": create,
+    "inset": inset,
+    "extrude": extrude,
+    "triangulate": triangulate,
+    "mirror": mirror,
+}
+
+if __name__ == "__main__":
+    OPS[args()[1]](*args()[2:])

@@ -1,0 +1,89 @@
+"""Write the peer benchmark's mesh inputs into DIR (run in the bench venv).
+
+    python make_inputs.py DIR
+
+Deterministic: the soup's jitter comes from numpy's seeded RNG, the
+icospheres from trimesh.creation. Each mesh is written as binary PLY (for
+graftal), .npz (for the Python peers) and, for CGAL, OFF.
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+SEED = 17
+SOUP_CELLS, SOUP_SPACING, SOUP_JITTER = 408, 0.01, 1e-6
+
+
+def grid(nx, ny, spacing):
+    """Vertices (row-major, x fastest) and quads of an nx × ny cell grid."""
+    xs, ys = np.meshgrid(np.arange(nx + 1) * spacing, np.arange(ny + 1) * spacing)
+    verts = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    a = (j * (nx + 1) + i).ravel()
+    quads = np.column_stack([a, a + 1, a + nx + 2, a + nx + 1])
+    return verts, quads
+
+
+def triangles(quads):
+    return np.vstack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+
+
+def soup():
+    """The merge workload: every triangle its own three jittered vertices."""
+    verts, quads = grid(SOUP_CELLS, SOUP_CELLS, SOUP_SPACING)
+    corners = verts[triangles(quads)].reshape(-1, 3)
+    rng = np.random.default_rng(SEED)
+    corners += rng.uniform(-SOUP_JITTER, SOUP_JITTER, corners.shape)
+    return corners, np.arange(len(corners)).reshape(-1, 3)
+
+
+def selfx():
+    """Two overlapping icospheres: 102,400 triangles, 902 crossing pairs."""
+    big = trimesh.creation.icosphere(subdivisions=6, radius=1.0)
+    small = trimesh.creation.icosphere(subdivisions=5, radius=0.8)
+    verts = np.vstack([big.vertices, small.vertices + [0.9, 0.0, 0.0]])
+    faces = np.vstack([big.faces, small.faces + len(big.vertices)])
+    return verts, faces
+
+
+def write_ply(path, verts, faces):
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(verts)}\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        f"element face {len(faces)}\n"
+        "property list uchar int vertex_indices\nend_header\n"
+    )
+    record = np.dtype([("n", "u1"), ("v", "<i4", 3)], align=False)
+    packed = np.empty(len(faces), record)
+    packed["n"], packed["v"] = 3, faces
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(np.ascontiguousarray(verts, "<f8").tobytes())
+        f.write(packed.tobytes())
+
+
+def write_off(path, verts, faces):
+    with open(path, "w") as f:
+        f.write(f"OFF\n{len(verts)} {len(faces)} 0\n")
+        np.savetxt(f, verts, fmt="%.17g")
+        np.savetxt(f, np.column_stack([np.full(len(faces), 3), faces]), fmt="%d")
+
+
+def main(out):
+    out.mkdir(parents=True, exist_ok=True)
+    for name, (verts, faces) in {"soup": soup(), "selfx": selfx()}.items():
+        write_ply(out / f"{name}.ply", verts, faces)
+        np.savez(out / f"{name}.npz", vertices=verts, faces=faces)
+    write_off(out / "selfx.off", *selfx())
+    verts, quads = grid(300, 300, 0.01)
+    np.savez(out / "quads300.npz", vertices=verts, faces=quads)
+    verts, quads = grid(500, 1000, 0.01)
+    np.savez(out / "tri1m.npz", vertices=verts, faces=triangles(quads))
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]))
