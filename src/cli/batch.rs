@@ -1074,8 +1074,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     });
     entry.steps = steps_json(&result.steps, args.timings);
     let stats = context.want_stats.then(|| {
-        let report = mesh.report();
-        let gates = stats::gates(mesh, stats::CLOSE_TOLERANCE);
+        let (report, gates) = stats::report_and_gates(mesh, stats::CLOSE_TOLERANCE);
         let doc = stats::run_stats_doc(
             program,
             &result,

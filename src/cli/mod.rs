@@ -461,8 +461,7 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             let indexed = input.read_mesh(&mesh)?;
             let (kernel_mesh, import) = mesh_from_indexed(&indexed)
                 .map_err(|e| Failure::Input(format!("{}: {e}", mesh.display())))?;
-            let report = kernel_mesh.report();
-            let gates = stats::gates(&kernel_mesh, tolerance);
+            let (report, gates) = stats::report_and_gates(&kernel_mesh, tolerance);
             let text = if json {
                 format!("{}\n", stats::info_json(&mesh, &report, &gates, &import))
             } else {

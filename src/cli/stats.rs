@@ -40,14 +40,27 @@ impl Gates {
     }
 }
 
-pub fn gates(mesh: &Mesh, close_tolerance: f64) -> Gates {
-    let points: Vec<DVec3> = mesh.vert_ids().map(|v| mesh.position(v)).collect();
-    let budget = PairLimits::for_items(points.len()).max_tests;
+/// Both searches, side by side on two threads (each is deterministic on
+/// its own, so the answer does not depend on the thread count).
+fn gates(mesh: &Mesh, close_tolerance: f64) -> Gates {
+    let (self_intersections, close_vertices) = rayon::join(
+        || self_intersection_search(mesh, PairLimits::for_items),
+        || {
+            let points: Vec<DVec3> = mesh.vert_ids().map(|v| mesh.position(v)).collect();
+            let budget = PairLimits::for_items(points.len()).max_tests;
+            count_close_points(&points, close_tolerance, budget)
+        },
+    );
     Gates {
-        self_intersections: self_intersection_search(mesh, PairLimits::for_items),
-        close_vertices: count_close_points(&points, close_tolerance, budget),
+        self_intersections,
+        close_vertices,
         close_tolerance,
     }
+}
+
+/// The mesh report and both gates, computed side by side.
+pub fn report_and_gates(mesh: &Mesh, close_tolerance: f64) -> (MeshReport, Gates) {
+    rayon::join(|| mesh.report(), || gates(mesh, close_tolerance))
 }
 
 #[derive(Serialize)]

@@ -184,8 +184,7 @@ fn regenerate(
     };
     let result =
         grammar::run(program, &options).map_err(|e| Failure::Limit(EXIT_RUNTIME, e.to_string()))?;
-    let report = result.mesh.report();
-    let gates = stats::gates(&result.mesh, stats::CLOSE_TOLERANCE);
+    let (report, gates) = stats::report_and_gates(&result.mesh, stats::CLOSE_TOLERANCE);
     let mut stats = serde_json::to_string_pretty(&stats::run_stats_doc(
         program, &result, &report, &gates, 0, false,
     ))

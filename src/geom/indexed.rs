@@ -12,6 +12,7 @@ use rustc_hash::FxHashMap;
 
 use glam::DVec3;
 
+use super::cells::Cells;
 use super::material::Material;
 use super::polygon;
 
@@ -528,14 +529,10 @@ impl IndexedMesh {
         let mut map: Vec<u32> = Vec::with_capacity(n);
         let mut kept: Vec<u32> = Vec::new();
         if distance > 0.0 && distance.is_finite() {
-            // Cells of side 2d: every point within d of p lies in the cells
-            // [p − d, p + d] touches (widened by a millionth of a cell
-            // against rounding), two per axis — 8 cells searched, not 27.
-            // Each cell heads a list (threaded through `next`) of the kept
-            // vertices in it, newest first.
-            let side = 2.0 * distance;
-            let cell = |x: f64| (x / side).floor() as i64;
-            let reach = |x: f64, sign: f64| (x / side + sign * (0.5 + 1e-6)).floor() as i64;
+            // Each cell (geom::cells: 8 searched per point) heads a list,
+            // threaded through `next`, of the kept vertices in it, newest
+            // first.
+            let cells = Cells::for_distance(distance);
             let mut heads: FxHashMap<[i64; 3], u32> = FxHashMap::default();
             heads.reserve(n);
             let mut next: Vec<u32> = Vec::with_capacity(n);
@@ -543,8 +540,7 @@ impl IndexedMesh {
             let d2 = distance * distance;
             for (i, p) in self.positions.iter().enumerate() {
                 let point = DVec3::from_array(*p);
-                let lo = p.map(|x| reach(x, -1.0));
-                let hi = p.map(|x| reach(x, 1.0));
+                let (lo, hi) = cells.around(*p);
                 let mut found = u32::MAX;
                 for cx in lo[0]..=hi[0] {
                     for cy in lo[1]..=hi[1] {
@@ -570,7 +566,7 @@ impl IndexedMesh {
                 } else {
                     let j = kept.len() as u32;
                     kept.push(i as u32);
-                    let head = heads.entry(p.map(cell)).or_insert(u32::MAX);
+                    let head = heads.entry(cells.of(*p)).or_insert(u32::MAX);
                     next.push(*head);
                     *head = j;
                     j

@@ -18,9 +18,12 @@
 //!   transfer functions; [`normals`]: shading normals split at creases;
 //!   [`uv`]: texture-coordinate projections; [`tubes`]: wire edges as
 //!   closed prisms a viewer draws.
+//! - [`cells`]: hash-grid cells for fixed-distance searches (8 cells, not
+//!   27).
 //! - [`union_find`] and [`names`] (the "did you mean" of every message).
 
 pub mod boxes;
+pub mod cells;
 pub mod frame;
 pub mod indexed;
 pub mod interval;

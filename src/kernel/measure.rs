@@ -5,7 +5,9 @@ use glam::DVec3;
 
 use crate::geom::UnionFind;
 
-use super::ids::{FaceId, VertId};
+use super::ids::LoopId;
+#[cfg(test)]
+use super::ids::VertId;
 use super::mesh::Mesh;
 
 /// What `graftal info` and the stats report about a mesh.
@@ -52,22 +54,30 @@ impl Mesh {
         for e in self.edge_ids() {
             let [a, b] = self.edge_verts(e);
             components.union(a.0, b.0);
-            let loops: Vec<_> = self.edge_loops(e).collect();
-            match loops.len() {
-                0 => wire_edges += 1,
-                1 => boundary_edges += 1,
-                2 => {
-                    if self.lp(loops[0]).vert == self.lp(loops[1]).vert {
+            let mut loops = self.edge_loops(e);
+            match (loops.next(), loops.next(), loops.next()) {
+                (None, _, _) => wire_edges += 1,
+                (Some(_), None, _) => boundary_edges += 1,
+                (Some(l), Some(m), None) => {
+                    if self.lp(l).vert == self.lp(m).vert {
                         consistently_oriented = false;
                     }
                 }
                 _ => non_manifold_edges += 1,
             }
         }
+        // Faces at each vertex (faces repeat no vertex: one loop each) and
+        // one loop there to start the fan walk from, in one pass.
+        let mut faces_at = vec![0u32; self.vert_capacity()];
+        let mut loop_at: Vec<Option<LoopId>> = vec![None; self.vert_capacity()];
+        for (index, l) in self.loops.iter() {
+            let v = l.vert.0 as usize;
+            faces_at[v] += 1;
+            loop_at[v].get_or_insert(LoopId(index));
+        }
         let mut isolated_verts = 0;
         let mut non_manifold_verts = 0;
         let mut bounds: Option<(DVec3, DVec3)> = None;
-        let mut fan_faces: Vec<FaceId> = Vec::new();
         for v in self.vert_ids() {
             let p = self.position(v);
             bounds = Some(match bounds {
@@ -78,17 +88,20 @@ impl Mesh {
                 isolated_verts += 1;
                 continue;
             }
-            fan_faces.clear();
-            fan_faces.extend(self.vert_faces(v));
-            if fan_faces.len() > 1 && self.fan_count(v, &fan_faces) > 1 {
-                non_manifold_verts += 1;
+            let faces = faces_at[v.0 as usize];
+            if let (true, Some(start)) = (faces > 1, loop_at[v.0 as usize]) {
+                if self.fan_faces(start, faces) < faces {
+                    non_manifold_verts += 1;
+                }
             }
         }
         let mut area = 0.0;
         let mut signed_volume = 0.0;
         let mut triangles = 0;
+        let mut points: Vec<DVec3> = Vec::new();
         for f in self.face_ids() {
-            let points = self.face_positions(f);
+            points.clear();
+            points.extend(self.face_verts(f).map(|v| self.position(v)));
             area += crate::geom::polygon::area(&points);
             triangles += points.len() - 2;
             // Divergence theorem over a fan: exact for planar faces.
@@ -128,22 +141,42 @@ impl Mesh {
         }
     }
 
-    /// Number of edge-connected fans the faces around `v` form, joining
-    /// faces across edges at `v` that have exactly two faces.
-    fn fan_count(&self, v: VertId, faces: &[FaceId]) -> usize {
-        let mut sorted = faces.to_vec();
-        sorted.sort_unstable();
-        let index = |f: FaceId| sorted.binary_search(&f).expect("face around v");
-        let mut groups = UnionFind::new(faces.len());
-        for e in self.vert_edges(v) {
-            let around: Vec<FaceId> = self.edge_faces(e).collect();
-            if around.len() == 2 {
-                groups.union(index(around[0]) as u32, index(around[1]) as u32);
+    /// How many faces around `start`'s vertex `v` the fan of `start`'s
+    /// face holds: faces are joined across edges at `v` that have exactly
+    /// two faces, and `v` is manifold when its fan holds all its faces.
+    /// Each face has two edges at `v` and each joining edge two faces, so
+    /// the fan is a path or a cycle: walked both ways from `start` without
+    /// allocating, in at most `faces` steps (independent of orientation).
+    fn fan_faces(&self, start: LoopId, faces: u32) -> u32 {
+        let v = self.lp(start).vert;
+        let mut reached = 1;
+        // Leave `start`'s face by its outgoing edge, then by its incoming
+        // one (when the first walk did not come round).
+        for leave_by_own_edge in [true, false] {
+            let mut at = start;
+            let mut own = leave_by_own_edge;
+            while reached < faces {
+                // The loop of the leaving edge in this face.
+                let leaving = if own { at } else { self.lp(at).prev };
+                let across = self.lp(leaving).radial_next;
+                if across == leaving || self.lp(across).radial_next != leaving {
+                    break; // a boundary or non-manifold edge ends the fan
+                }
+                // The next face's loop at `v`, and whether the walk leaves
+                // that face by the loop's own edge (the one it did not
+                // arrive by) or by its predecessor's.
+                (at, own) = if self.lp(across).vert == v {
+                    (across, false)
+                } else {
+                    (self.lp(across).next, true)
+                };
+                if at == start {
+                    return reached;
+                }
+                reached += 1;
             }
         }
-        (0..faces.len() as u32)
-            .filter(|&i| groups.find(i) == i)
-            .count()
+        reached
     }
 }
 
@@ -208,5 +241,63 @@ mod tests {
         w.make_vert(DVec3::Y);
         let r = w.report();
         assert_eq!((r.wire_edges, r.isolated_verts, r.components), (1, 1, 2));
+    }
+
+    /// Fan count by brute force: union faces around `v` across edges at
+    /// `v` with exactly two faces.
+    fn fans_by_union_find(m: &Mesh, v: VertId) -> usize {
+        let faces: Vec<_> = m.vert_faces(v).collect();
+        let mut groups = UnionFind::new(faces.len());
+        for e in m.vert_edges(v) {
+            let around: Vec<_> = m.edge_faces(e).collect();
+            if let [a, b] = around[..] {
+                let index = |f| faces.iter().position(|&g| g == f).unwrap() as u32;
+                groups.union(index(a), index(b));
+            }
+        }
+        (0..faces.len() as u32)
+            .filter(|&i| groups.find(i) == i)
+            .count()
+    }
+
+    #[test]
+    fn fan_walk_agrees_with_union_find_on_fans_of_every_shape() {
+        // Triangles around a hub: every subset of 8 wedges (open and closed
+        // fans, several fans, one wedge flipped so orientation is mixed).
+        for mask in 1u32..256 {
+            for flipped in [None, Some(mask.trailing_zeros())] {
+                let mut m = Mesh::new();
+                let hub = m.make_vert(DVec3::ZERO);
+                let rim: Vec<_> = (0..8)
+                    .map(|k| {
+                        let a = k as f64 * std::f64::consts::FRAC_PI_4;
+                        m.make_vert(DVec3::new(libm::cos(a), libm::sin(a), 0.0))
+                    })
+                    .collect();
+                for k in 0..8u32 {
+                    if mask & (1 << k) != 0 {
+                        let (b, c) = (rim[k as usize], rim[(k as usize + 1) % 8]);
+                        let ring = if flipped == Some(k) {
+                            [hub, c, b]
+                        } else {
+                            [hub, b, c]
+                        };
+                        m.make_face(&ring).unwrap();
+                    }
+                }
+                m.validate().unwrap();
+                let fans = fans_by_union_find(&m, hub);
+                let r = m.report();
+                assert_eq!(
+                    r.non_manifold_verts,
+                    usize::from(fans > 1),
+                    "mask {mask:08b} {flipped:?}"
+                );
+                // A flipped wedge is inconsistent only beside a neighbour.
+                let alone =
+                    |k: u32| mask & (1 << ((k + 1) % 8)) == 0 && mask & (1 << ((k + 7) % 8)) == 0;
+                assert_eq!(r.consistently_oriented, flipped.is_none_or(alone));
+            }
+        }
     }
 }
