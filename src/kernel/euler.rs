@@ -53,6 +53,8 @@ pub enum KernelError {
     GlueWithinFace { a: VertId, b: VertId, face: FaceId },
     #[error("the edges do not form a closed ring (at edge {0})")]
     NotARing(EdgeId),
+    #[error("a ring of {verts} vertices has {verts} sides, got {edges} edges")]
+    SideCount { verts: usize, edges: usize },
     #[error("vertex {vert} is not an end of edge {edge}")]
     NotAnEnd { vert: VertId, edge: EdgeId },
     #[error("position or parameter is not finite")]
@@ -280,11 +282,7 @@ impl Mesh {
 
     /// MakeEdge: a new wire edge between two existing, distinct, unconnected vertices.
     pub fn make_edge(&mut self, a: VertId, b: VertId) -> Result<EdgeId, KernelError> {
-        self.check_vert(a)?;
-        self.check_vert(b)?;
-        if a == b {
-            return Err(KernelError::SameVertex(a));
-        }
+        self.check_two_verts(a, b)?;
         if let Some(e) = self.find_edge(a, b) {
             return Err(KernelError::EdgeExists(a, b, e));
         }
@@ -311,15 +309,86 @@ impl Mesh {
     /// MakeFace on a ring of vertices, wound in the given order. Edges that do
     /// not exist yet are made. The ring needs at least 3 distinct live vertices.
     pub fn make_face(&mut self, ring: &[VertId]) -> Result<FaceId, KernelError> {
+        self.check_face_ring(ring)?;
+        Ok(
+            self.make_face_unchecked(ring, |mesh, _, v, w| match mesh.find_edge(v, w) {
+                Some(e) => e,
+                None => mesh.new_edge_unchecked(v, w),
+            }),
+        )
+    }
+
+    /// MakeFace on a ring of vertices whose sides already exist as the given
+    /// edges (`edges[i]` joins `ring[i]` and `ring[i + 1]`, the last joins
+    /// the last vertex to the first): the face [`Mesh::make_face`] would
+    /// make, without searching disk cycles for edges the caller holds.
+    pub fn make_face_on_edges(
+        &mut self,
+        ring: &[VertId],
+        edges: &[EdgeId],
+    ) -> Result<FaceId, KernelError> {
+        self.check_face_ring(ring)?;
+        if edges.len() != ring.len() {
+            return Err(KernelError::SideCount {
+                verts: ring.len(),
+                edges: edges.len(),
+            });
+        }
+        for (i, &e) in edges.iter().enumerate() {
+            self.check_edge(e)?;
+            let (v, w) = (ring[i], ring[(i + 1) % ring.len()]);
+            if !matches!(self.edge_verts(e), [a, b] if (a, b) == (v, w) || (b, a) == (v, w)) {
+                return Err(KernelError::NotARing(e));
+            }
+        }
+        Ok(self.make_face_unchecked(ring, |_, i, _, _| edges[i]))
+    }
+
+    /// The edge joining two distinct live vertices, made (as a wire edge)
+    /// if there is none; `true` when it was made.
+    pub fn find_or_make_edge(
+        &mut self,
+        a: VertId,
+        b: VertId,
+    ) -> Result<(EdgeId, bool), KernelError> {
+        self.check_two_verts(a, b)?;
+        Ok(match self.find_edge(a, b) {
+            Some(e) => (e, false),
+            None => (self.new_edge_unchecked(a, b), true),
+        })
+    }
+
+    /// Two distinct live vertices.
+    fn check_two_verts(&self, a: VertId, b: VertId) -> Result<(), KernelError> {
+        self.check_vert(a)?;
+        self.check_vert(b)?;
+        if a == b {
+            return Err(KernelError::SameVertex(a));
+        }
+        Ok(())
+    }
+
+    /// At least 3 distinct live vertices.
+    fn check_face_ring(&self, ring: &[VertId]) -> Result<(), KernelError> {
         if ring.len() < 3 {
             return Err(KernelError::TooFewVertices(ring.len()));
         }
         for &v in ring {
             self.check_vert(v)?;
         }
-        if let Some(v) = repeated_vertex(ring) {
-            return Err(KernelError::RepeatedVertex(v));
+        match repeated_vertex(ring) {
+            Some(v) => Err(KernelError::RepeatedVertex(v)),
+            None => Ok(()),
         }
+    }
+
+    /// MakeFace on a checked ring; `side(mesh, i, v, w)` gives the edge
+    /// joining `ring[i]` = v to the next vertex w, making it if need be.
+    fn make_face_unchecked(
+        &mut self,
+        ring: &[VertId],
+        mut side: impl FnMut(&mut Self, usize, VertId, VertId) -> EdgeId,
+    ) -> FaceId {
         let f = FaceId(self.faces.insert(Face {
             first_loop: LoopId(0),
             len: ring.len() as u32,
@@ -329,10 +398,7 @@ impl Mesh {
         let mut prev: Option<LoopId> = None;
         for (i, &v) in ring.iter().enumerate() {
             let w = ring[(i + 1) % ring.len()];
-            let e = match self.find_edge(v, w) {
-                Some(e) => e,
-                None => self.new_edge_unchecked(v, w),
-            };
+            let e = side(self, i, v, w);
             let l = self.new_loop(v, e, f);
             self.radial_insert(l, e);
             if let Some(p) = prev {
@@ -351,7 +417,7 @@ impl Mesh {
         self.face_mut(f).first_loop = first;
         self.attributes.on_new(Domain::Face, f.index());
         self.refresh_normal(f);
-        Ok(f)
+        f
     }
 
     /// MakeFace on a ring of edges given in ring order (each edge shares a
@@ -405,11 +471,7 @@ impl Mesh {
         b: VertId,
     ) -> Result<(FaceId, EdgeId), KernelError> {
         self.check_face(f)?;
-        self.check_vert(a)?;
-        self.check_vert(b)?;
-        if a == b {
-            return Err(KernelError::SameVertex(a));
-        }
+        self.check_two_verts(a, b)?;
         let la = self
             .face_loop_at(f, a)
             .ok_or(KernelError::NotInFace { vert: a, face: f })?;
@@ -658,11 +720,7 @@ impl Mesh {
         gone: VertId,
         normals: Normals,
     ) -> Result<VertId, KernelError> {
-        self.check_vert(keep)?;
-        self.check_vert(gone)?;
-        if keep == gone {
-            return Err(KernelError::SameVertex(keep));
-        }
+        self.check_two_verts(keep, gone)?;
         if let Some(e) = self.find_edge(keep, gone) {
             let position = self.position(keep);
             return self.collapse_edge_with(e, keep, position, normals);
@@ -821,10 +879,14 @@ impl Mesh {
     }
 
     fn kill_face_unchecked(&mut self, f: FaceId) {
-        let loops: Vec<LoopId> = self.face_loops(f).collect();
-        for l in loops {
+        // Radial unlinking leaves the boundary links alone, so the boundary
+        // can be walked while its loops go.
+        let (mut l, len) = (self.face(f).first_loop, self.face(f).len);
+        for _ in 0..len {
+            let next = self.lp(l).next;
             self.radial_remove(l);
             self.loops.remove(l.0);
+            l = next;
         }
         self.faces.remove(f.0);
     }

@@ -125,6 +125,71 @@ fn make_face_from_edges_orders_the_ring() {
 }
 
 #[test]
+fn make_face_on_edges_matches_make_face_and_checks_its_edges() {
+    let (mut m, v, f0, _) = two_quads();
+    let apex = m.make_vert(v3(0.25, 0.5, 1.));
+    let (side_a, _) = m.find_or_make_edge(v[0], apex).unwrap();
+    let (base, made) = m.find_or_make_edge(v[0], v[1]).unwrap();
+    assert!(!made);
+    assert_eq!(Some(base), m.find_edge(v[1], v[0]));
+    let (side_b, made) = m.find_or_make_edge(v[1], apex).unwrap();
+    assert!(made);
+    let before = (m.edge_count(), m.loop_count(), m.face_count());
+    // Wrong count, an edge off its side, a dead edge: refused, mesh unchanged.
+    let ring = [v[0], v[1], apex];
+    assert_eq!(
+        m.make_face_on_edges(&ring, &[base, side_b]),
+        Err(KernelError::SideCount { verts: 3, edges: 2 })
+    );
+    assert_eq!(
+        m.make_face_on_edges(&ring, &[base, side_a, side_b]),
+        Err(KernelError::NotARing(side_a))
+    );
+    assert!(matches!(
+        m.make_face_on_edges(&ring, &[base, side_b, EdgeId(99)]),
+        Err(KernelError::Dead { .. })
+    ));
+    assert_eq!(
+        m.make_face_on_edges(&[v[0], v[1], v[0]], &[base, base, base]),
+        Err(KernelError::RepeatedVertex(v[0]))
+    );
+    assert_eq!((m.edge_count(), m.loop_count(), m.face_count()), before);
+    m.validate().unwrap();
+
+    let f = m
+        .make_face_on_edges(&ring, &[base, side_b, side_a])
+        .unwrap();
+    m.validate().unwrap();
+    let mut reference = m.clone();
+    reference.kill_face(f).unwrap();
+    let g = reference.make_face(&ring).unwrap();
+    assert_eq!(f, g);
+    assert_eq!(m.face_verts(f).collect::<Vec<_>>(), ring);
+    assert_eq!(
+        m.face_edges(f).collect::<Vec<_>>(),
+        vec![base, side_b, side_a]
+    );
+    assert_eq!(m.face_normal(f), reference.face_normal(g));
+    assert_eq!(m.edge_face_count(base), 2);
+    assert_ne!(m.face_normal(f), m.face_normal(f0));
+    assert_eq!(
+        m.find_or_make_edge(apex, apex),
+        Err(KernelError::SameVertex(apex))
+    );
+}
+
+#[test]
+fn kill_face_unlinks_every_loop_of_a_shared_boundary() {
+    let (mut m, v, f0, f1) = two_quads();
+    m.kill_face(f0).unwrap();
+    m.validate().unwrap();
+    assert_eq!(m.loop_count(), 4);
+    let shared = m.find_edge(v[1], v[4]).unwrap();
+    assert_eq!(m.edge_faces(shared).collect::<Vec<_>>(), vec![f1]);
+    assert_eq!(m.edge_count(), 7);
+}
+
+#[test]
 fn split_face_makes_two_faces_sharing_the_new_edge() {
     let (mut m, v, f0, _) = two_quads();
     let (g, e) = m.split_face(f0, v[0], v[4]).unwrap();

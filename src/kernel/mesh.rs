@@ -217,8 +217,21 @@ impl Mesh {
 
     /// Unit Newell normal from current positions; zero when degenerate.
     pub fn compute_face_normal(&self, f: FaceId) -> DVec3 {
-        let points = self.face_positions(f);
-        polygon::unit_normal(&points).unwrap_or(DVec3::ZERO)
+        // Every Euler operator that makes or reshapes a face calls this:
+        // small faces (nearly all) gather their corners on the stack.
+        const SMALL: usize = 8;
+        let normal = if self.face(f).len as usize <= SMALL {
+            let mut points = [DVec3::ZERO; SMALL];
+            let mut n = 0;
+            for v in self.face_verts(f) {
+                points[n] = self.position(v);
+                n += 1;
+            }
+            polygon::unit_normal(&points[..n])
+        } else {
+            polygon::unit_normal(&self.face_positions(f))
+        };
+        normal.unwrap_or(DVec3::ZERO)
     }
 
     pub fn face_positions(&self, f: FaceId) -> Vec<DVec3> {
@@ -303,6 +316,11 @@ impl Mesh {
     /// The vertex a loop starts at (its face runs from it along the loop's edge).
     pub fn loop_vert(&self, l: LoopId) -> VertId {
         self.lp(l).vert
+    }
+
+    /// The edge a loop runs along (from its vertex to the next loop's).
+    pub fn loop_edge(&self, l: LoopId) -> EdgeId {
+        self.lp(l).edge
     }
 
     /// Loops around an edge (its radial cycle).

@@ -29,7 +29,7 @@
 use glam::DVec3;
 
 use super::{OpError, Selection};
-use crate::kernel::ids::{FaceId, VertId};
+use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
 
 /// A single isolated vertex (the seed's `CreateVert`, §4.6.1).
@@ -90,6 +90,15 @@ pub fn create_grid(
     let quads = sx * sy;
     let edges = sx * (sy + 1) + sy * (sx + 1);
     check_budget(mesh, (sx + 1) * (sy + 1), edges, 4 * quads, quads)?;
+    // Within the 2^32 budget just checked (callers bound memory before
+    // this: the grammar's growth prediction): the arenas grow once.
+    let count = |n: u128| usize::try_from(n).unwrap_or(usize::MAX);
+    mesh.reserve(
+        count((sx + 1) * (sy + 1)),
+        count(edges),
+        count(4 * quads),
+        count(quads),
+    );
 
     let row = segments_x as usize + 1;
     let mut verts = Vec::with_capacity(row * (segments_y as usize + 1));
@@ -101,15 +110,39 @@ pub fn create_grid(
         }
     }
     let mut faces = Vec::with_capacity(quads as usize);
+    let mut edges = Vec::with_capacity(count(edges));
+    // The sides a quad shares with the quad below (its top) and the quad
+    // to its left (its right) are passed on, not searched for; the other
+    // sides are new. Edges are made in the order `make_face` would make
+    // them, so ids match a face-by-face build.
+    let mut below: Vec<Option<EdgeId>> = vec![None; segments_x as usize];
     for j in 0..segments_y as usize {
-        for i in 0..segments_x as usize {
+        let mut left: Option<EdgeId> = None;
+        for (i, below) in below.iter_mut().enumerate() {
             let a = j * row + i;
             let b = (j + 1) * row + i;
             // Counter-clockwise from +Z: +x along the row, then +y, then back.
-            faces.push(mesh.make_face(&[verts[a], verts[a + 1], verts[b + 1], verts[b]])?);
+            let ring = [verts[a], verts[a + 1], verts[b + 1], verts[b]];
+            let mut side = |known: Option<EdgeId>, k: usize| match known {
+                Some(e) => Ok::<_, OpError>(e),
+                None => {
+                    let e = mesh.make_edge(ring[k], ring[(k + 1) % 4])?;
+                    edges.push(e);
+                    Ok(e)
+                }
+            };
+            let sides = [
+                side(*below, 0)?,
+                side(None, 1)?,
+                side(None, 2)?,
+                side(left, 3)?,
+            ];
+            faces.push(mesh.make_face_on_edges(&ring, &sides)?);
+            *below = Some(sides[2]);
+            left = Some(sides[1]);
         }
     }
-    Ok(created(mesh, verts, faces))
+    Ok(Selection::from_parts(verts, edges, faces))
 }
 
 /// An axis-aligned cube of edge length `size`: 8 vertices, 12 edges and 6
@@ -506,6 +539,46 @@ pub(crate) mod tests {
             .count();
         assert_eq!(boundary, 2 * (3 + 2));
         assert_eq!(euler_characteristic(&m), 1);
+    }
+
+    #[test]
+    fn grid_numbers_its_elements_like_a_face_by_face_build() {
+        // The grid hands shared sides from quad to quad instead of
+        // searching for them; ids must be those of plain `make_face` calls.
+        let (nx, ny) = (5u32, 3u32);
+        let mut fast = Mesh::new();
+        let extra = fast.make_vert(DVec3::Z);
+        let sel = create_grid(&mut fast, nx, ny, 2.0, 1.0).unwrap();
+        fast.validate().unwrap();
+        let mut slow = Mesh::new();
+        slow.make_vert(DVec3::Z);
+        let row = nx as usize + 1;
+        let verts: Vec<VertId> = (0..=ny)
+            .flat_map(|j| (0..=nx).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let x = grid_coordinate(i, nx, 2.0);
+                slow.make_vert(DVec3::new(x, grid_coordinate(j, ny, 1.0), 0.0))
+            })
+            .collect();
+        for j in 0..ny as usize {
+            for i in 0..nx as usize {
+                let (a, b) = (j * row + i, (j + 1) * row + i);
+                slow.make_face(&[verts[a], verts[a + 1], verts[b + 1], verts[b]])
+                    .unwrap();
+            }
+        }
+        let edges = |m: &Mesh| m.edge_ids().map(|e| m.edge_verts(e)).collect::<Vec<_>>();
+        let faces = |m: &Mesh| {
+            m.face_ids()
+                .map(|f| m.face_verts(f).collect::<Vec<_>>())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(edges(&fast), edges(&slow));
+        assert_eq!(faces(&fast), faces(&slow));
+        let all_edges: Vec<EdgeId> = fast.edge_ids().collect();
+        assert_eq!(sel.edges, all_edges);
+        assert_eq!(sel.faces.len(), (nx * ny) as usize);
+        assert!(!sel.verts.contains(&extra));
     }
 
     #[test]

@@ -255,62 +255,67 @@ pub fn extrude_faces(
     for &f in &faces {
         mesh.check_face(f)?;
     }
-    // Rings, their edges and the copies' positions, from the unchanged mesh.
-    struct Plan {
-        face: FaceId,
-        ring: Vec<VertId>,
-        ring_edges: Vec<EdgeId>,
-        targets: Vec<DVec3>,
+    // Rings, their edges and the copies' positions, from the unchanged mesh,
+    // in flat arrays (face k's corners are `starts[k]..starts[k + 1]`).
+    let corners: usize = faces.iter().map(|&f| mesh.face_len(f)).sum();
+    let (mut ring, mut ring_edges) = (Vec::with_capacity(corners), Vec::with_capacity(corners));
+    let mut targets = Vec::with_capacity(corners);
+    let mut starts = Vec::with_capacity(faces.len() + 1);
+    starts.push(0);
+    for &f in &faces {
+        let shift = offset.displacement(|| mesh.compute_face_normal(f));
+        for l in mesh.face_loops(f) {
+            let v = mesh.loop_vert(l);
+            ring.push(v);
+            ring_edges.push(mesh.loop_edge(l));
+            targets.push(mesh.position(v) + shift);
+        }
+        starts.push(ring.len());
     }
-    let plans: Vec<Plan> = faces
-        .iter()
-        .map(|&f| {
-            let shift = offset.displacement(|| mesh.compute_face_normal(f));
-            Plan {
-                face: f,
-                ring: mesh.face_verts(f).collect(),
-                ring_edges: mesh.face_edges(f).collect(),
-                targets: mesh
-                    .face_verts(f)
-                    .map(|v| mesh.position(v) + shift)
-                    .collect(),
-            }
-        })
-        .collect();
-    for plan in &plans {
-        check_targets(&plan.targets)?;
-    }
+    check_targets(&targets)?;
 
+    // Every face adds n vertices, 2n edges, n + 1 faces and 5n loops.
+    mesh.reserve(corners, 2 * corners, 5 * corners, corners + faces.len());
     let mut result = Selection::new();
-    for plan in plans {
-        let n = plan.ring.len();
-        let mut copies = Vec::with_capacity(n);
-        for (&v, &target) in plan.ring.iter().zip(&plan.targets) {
+    let (mut copies, mut top_edges) = (Vec::new(), Vec::new());
+    let mut sides = Vec::new();
+    for (k, &face) in faces.iter().enumerate() {
+        let span = starts[k]..starts[k + 1];
+        let (ring, ring_edges) = (&ring[span.clone()], &ring_edges[span.clone()]);
+        let n = ring.len();
+        copies.clear();
+        sides.clear();
+        for (&v, &target) in ring.iter().zip(&targets[span]) {
             let (side, copy) = mesh.make_edge_vert(v, target)?;
             copies.push(copy);
+            sides.push(side);
             result.edges.push(side);
         }
         let top = mesh.make_face(&copies)?;
-        mesh.copy_face_attrs(plan.face, top);
+        mesh.copy_face_attrs(face, top);
         result.faces.push(top);
+        // The top's loop i runs copy_i → copy_i+1 along its new edge i.
+        top_edges.clear();
+        top_edges.extend(mesh.face_loops(top).map(|l| mesh.loop_edge(l)));
         for i in 0..n {
             let j = (i + 1) % n;
-            if let Some(top_edge) = mesh.find_edge(copies[i], copies[j]) {
-                mesh.copy_edge_attrs(plan.ring_edges[i], top_edge);
-                result.edges.push(top_edge);
-            }
+            mesh.copy_edge_attrs(ring_edges[i], top_edges[i]);
+            result.edges.push(top_edges[i]);
             // The top runs copy_i → copy_j; the side runs it back, then down
             // and along the original edge i → j like the original face.
-            let side = mesh.make_face(&[copies[j], copies[i], plan.ring[i], plan.ring[j]])?;
-            mesh.copy_face_attrs(plan.face, side);
+            let side = mesh.make_face_on_edges(
+                &[copies[j], copies[i], ring[i], ring[j]],
+                &[top_edges[i], sides[i], ring_edges[i], sides[j]],
+            )?;
+            mesh.copy_face_attrs(face, side);
             result.faces.push(side);
         }
         if keep_original {
-            mesh.reverse_face(plan.face)?;
+            mesh.reverse_face(face)?;
         } else {
-            mesh.kill_face(plan.face)?;
+            mesh.kill_face(face)?;
         }
-        result.verts.extend(copies);
+        result.verts.extend_from_slice(&copies);
     }
     result.normalize();
     Ok(result)

@@ -100,28 +100,71 @@ pub fn make_face_from_edges(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Selecti
 /// included, untouched) and the new diagonal edges.
 pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpError> {
     let faces = canonical(faces);
+    // Every n-gon becomes n − 2 triangles and n − 3 diagonals; the arenas
+    // grow once (the killed face and its loops leave slots to reuse).
+    let (mut new_edges, mut new_loops, mut new_faces) = (0, 0, 0);
     for &f in &faces {
         mesh.check_face(f)?;
+        let n = mesh.face_len(f);
+        if n > 3 {
+            new_edges += n - 3;
+            new_loops += 2 * n - 6;
+            new_faces += n - 3;
+        }
     }
+    mesh.reserve(0, new_edges, new_loops, new_faces);
     let mut result = Selection::new();
+    let (mut ring, mut sides, mut points) = (Vec::new(), Vec::new(), Vec::new());
     let mut triangles = Vec::new();
+    // Rings up to this size keep their diagonals in a list scanned
+    // linearly; longer ones look each up in the disk cycles (cost of the
+    // smaller degree) so a 100k-gon stays linear.
+    const SCANNED_RING: u32 = 16;
+    let mut diagonals: Vec<((u32, u32), EdgeId)> = Vec::new();
     for f in faces {
-        let ring: Vec<VertId> = mesh.face_verts(f).collect();
+        ring.clear();
+        sides.clear();
+        points.clear();
+        for l in mesh.face_loops(f) {
+            let v = mesh.loop_vert(l);
+            ring.push(v);
+            sides.push(mesh.loop_edge(l));
+            points.push(mesh.position(v));
+        }
         if ring.len() == 3 {
             result.faces.push(f);
             continue;
         }
-        ring_triangles(&mesh.face_positions(f), &mut triangles);
+        ring_triangles(&points, &mut triangles);
+        let n = ring.len() as u32;
+        diagonals.clear();
         for tri in &triangles {
             let corners = tri.map(|i| ring[i as usize]);
-            // Diagonals do not exist yet unless another face made them.
+            // Ring sides are the face's own edges. Each diagonal is shared
+            // by two triangles: the first looks it up (another face may
+            // have made it) or makes it, the second finds it in
+            // `diagonals` when the ring is small enough to scan.
+            let mut edges = [sides[0]; 3];
             for k in 0..3 {
-                let (a, b) = (corners[k], corners[(k + 1) % 3]);
-                if mesh.find_edge(a, b).is_none() {
-                    result.edges.push(mesh.make_edge(a, b)?);
-                }
+                let (i, j) = (tri[k], tri[(k + 1) % 3]);
+                edges[k] = if j == i + 1 {
+                    sides[i as usize]
+                } else if i == 0 && j == n - 1 {
+                    sides[j as usize]
+                } else if let Some(&(_, e)) = diagonals.iter().find(|d| d.0 == (i, j)) {
+                    e
+                } else {
+                    let (e, made) = mesh.find_or_make_edge(corners[k], corners[(k + 1) % 3])?;
+                    if made {
+                        result.edges.push(e);
+                    }
+                    if n <= SCANNED_RING {
+                        diagonals.push(((i, j), e));
+                    }
+                    e
+                };
             }
-            let t = mesh.make_face(&corners)?;
+            let t = mesh.make_face_on_edges(&corners, &edges)?;
             mesh.copy_face_attrs(f, t);
             result.faces.push(t);
         }
@@ -154,6 +197,11 @@ fn ring_triangles(points: &[DVec3], out: &mut Vec<[u32; 3]>) {
 fn is_triangulation_of_ring(triangles: &[[u32; 3]], n: usize) -> bool {
     if triangles.len() + 2 != n {
         return false;
+    }
+    if let &[s, t] = triangles {
+        // A quad: split along 0–2 or 1–3, the halves in either order.
+        let halves = if s < t { [s, t] } else { [t, s] };
+        return halves == [[0, 1, 2], [0, 2, 3]] || halves == [[0, 1, 3], [1, 2, 3]];
     }
     let n = n as u32;
     let mut sides: Vec<(u32, u32)> = Vec::with_capacity(3 * triangles.len());
