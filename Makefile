@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers contact-sheet clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -65,6 +65,14 @@ bench:
 bench-peers:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal python3 bench-peers/run.py $(BENCH_PEERS_ARGS)
+
+## Time per element of the kernel operators, the import weld, the merge step
+## and the G³ engine at 10⁴, 10⁵ and 10⁶ elements, plus peak memory per
+## primitive (table in target/bench-scaling/scaling.md); standard-library
+## Python only, ~3 min. Not part of CI.
+bench-scaling:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal python3 bench-peers/scaling.py $(BENCH_SCALING_ARGS)
 
 clean:
 	rm -rf $(OUT)

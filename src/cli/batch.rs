@@ -1025,7 +1025,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         mesh_progress: context.mesh_progress,
         ..RunOptions::default()
     };
-    let result = match grammar::run(program, &options) {
+    let mut result = match grammar::run(program, &options) {
         Ok(result) => result,
         Err(e) => {
             let kind = match e.kind {
@@ -1038,6 +1038,17 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         }
     };
     let indexed = grammar::export(program, &result.mesh);
+    let counts = Counts {
+        vertices: result.mesh.vert_count(),
+        edges: result.mesh.edge_count(),
+        faces: result.mesh.face_count(),
+    };
+    if !context.want_stats {
+        // Nothing reads the kernel mesh after the export; freeing it before
+        // the file is encoded makes peak memory the larger of the two, not
+        // their sum.
+        result.mesh = crate::kernel::Mesh::default();
+    }
     let thumbnail = match args.contact_sheet.is_some().then(|| {
         let options = crate::preview::Options {
             width: args.thumbnail_size,
@@ -1059,6 +1070,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     if let Err(m) = encoded.stage(&v.output, &mut staged) {
         return fail(entry, "write", EXIT_RUNTIME, m);
     }
+    drop(indexed);
     let bytes = encoded.bytes;
     let mesh = &result.mesh;
     entry.bytes = Some(bytes.len() as u64);
@@ -1067,11 +1079,7 @@ fn produce(context: &Context, v: &Variant) -> Produced {
     if context.batch || context.want_stats || args.json {
         entry.sha256 = Some(hex(&Sha256::digest(&bytes)));
     }
-    entry.counts = Some(Counts {
-        vertices: mesh.vert_count(),
-        edges: mesh.edge_count(),
-        faces: mesh.face_count(),
-    });
+    entry.counts = Some(counts);
     entry.steps = steps_json(&result.steps, args.timings);
     let stats = context.want_stats.then(|| {
         let (report, gates) = stats::report_and_gates(mesh, stats::CLOSE_TOLERANCE);
@@ -1117,8 +1125,8 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         entry,
         stats,
         staged,
-        faces: mesh.face_count(),
-        vertices: mesh.vert_count(),
+        faces: counts.faces,
+        vertices: counts.vertices,
         warnings: result.warnings.clone(),
         thumbnail,
     }
