@@ -1,7 +1,7 @@
 """Time per element of graftal's operators from 10^4 to 10^6 elements, and
 memory per G3 primitive (issue 17, "Scaling").
 
-    GRAFTAL=target/release/graftal python3 bench-peers/scaling.py [--runs 3] [--out FILE]
+    GRAFTAL=target/release/graftal python3 bench-peers/scaling.py [--runs 3] [--only weld,grid] [--out FILE]
 
 Standard library only (no venv, no peers). Each workload is a rule file
 written into target/bench-scaling/ and run at three sizes; a step's time
@@ -166,6 +166,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--out", type=Path, default=WORK / "scaling.md")
+    parser.add_argument("--only", help="comma-separated words; run the workloads whose title contains one")
     parser.add_argument("--write-soup", nargs=2, metavar=("PATH", "N"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.write_soup:
@@ -175,7 +176,10 @@ def main():
         sys.exit(f"no graftal at {GRAFTAL}: cargo build --release, or set GRAFTAL")
     WORK.mkdir(parents=True, exist_ok=True)
     rows = []
+    words = args.only.split(",") if args.only else None
     for index, (title, (make, measured)) in enumerate(WORKLOADS.items()):
+        if words and not any(w in title for w in words):
+            continue
         cases = []
         for elements in SIZES:
             text, count = make(elements)
