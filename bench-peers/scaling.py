@@ -21,23 +21,16 @@ import shutil
 import statistics
 import subprocess
 import sys
-import time
 from array import array
 from pathlib import Path
+
+# The peer suite's rule templates and process runner (standard library).
+from run import STEP, grid_rule, spawn
 
 ROOT = Path(__file__).resolve().parent.parent
 WORK = ROOT / "target" / "bench-scaling"
 GRAFTAL = Path(os.environ.get("GRAFTAL", ROOT / "target" / "release" / "graftal"))
 SIZES = (10_000, 100_000, 1_000_000)
-
-
-def grid(n, m=None):
-    m = m or n
-    return f"[start]\ngrid = {{ segments = [{n}, {m}], size = [{n / 100}, {m / 100}] }}\n"
-
-
-def step(name, body):
-    return f'\n[[step]]\nname = "{name}"\n{body}\n'
 
 
 def side(elements, per_cell=1):
@@ -50,7 +43,7 @@ def grid_workload(body_steps, measured, per_cell=1, count="faces"):
 
     def make(elements):
         n = side(elements, per_cell)
-        text = grid(n) + "".join(step(name, body) for name, body in body_steps)
+        text = grid_rule(n, None, *body_steps)
         return text, {"faces": n * n, "triangles": 2 * n * n}[count]
 
     return make, measured
@@ -99,8 +92,8 @@ def soup_workload(weld):
         if weld:
             text = f'[start]\nimport = {{ path = "{soup.name}", weld = 0.0001 }}\n'
         else:
-            text = f'[start]\nimport = {{ path = "{soup.name}" }}\n' + step(
-                "merge", "merge = { distance = 0.0001 }"
+            text = f'[start]\nimport = {{ path = "{soup.name}" }}\n' + STEP.format(
+                name="merge", body="merge = { distance = 0.0001 }"
             )
         return text, 2 * n * n
 
@@ -134,32 +127,19 @@ WORKLOADS = {
 }
 
 
-def run(argv):
-    """(wall seconds, peak RSS in bytes) of argv run to the end; raises on failure."""
-    start = time.perf_counter()
-    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    err = proc.stderr.read().decode(errors="replace")
-    proc.stderr.close()
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise RuntimeError(f"{' '.join(argv)}: {err.strip()[-400:]}")
-    return wall, usage.ru_maxrss * 1024
-
-
 def measure(rule, measured):
     """(step seconds, primitives of the result, peak RSS bytes) of one run."""
     out = WORK / "out"
     shutil.rmtree(out, ignore_errors=True)
-    run([str(GRAFTAL), "run", str(rule), "--seeds", "0..1", "-o", str(out / "{seed}.ply"), "--timings", "-q"])
+    spawn([str(GRAFTAL), "run", str(rule), "--seeds", "0..1", "-o", str(out / "{seed}.ply"), "--timings", "-q"])
     variant = json.loads((out / "manifest.json").read_text())["variants"][0]
     steps = variant["steps"]
     seconds = (
         sum(s["time_ms"] for s in steps) if measured is None else next(s["time_ms"] for s in steps if s["name"] == measured)
     ) / 1000
     primitives = sum(variant["counts"].values())
-    _, rss = run([str(GRAFTAL), "run", str(rule), "-o", str(WORK / "rss.obj"), "-q"])
-    return seconds, primitives, rss
+    _, _, rss_mib = spawn([str(GRAFTAL), "run", str(rule), "-o", str(WORK / "rss.obj"), "-q"])
+    return seconds, primitives, rss_mib * 2**20
 
 
 def main():

@@ -146,12 +146,15 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
             // `diagonals` when the ring is small enough to scan.
             let mut edges = [sides[0]; 3];
             for k in 0..3 {
+                // Corners are ascending, so the closing side runs high to
+                // low: keys are (low, high).
                 let (i, j) = (tri[k], tri[(k + 1) % 3]);
-                edges[k] = if j == i + 1 {
-                    sides[i as usize]
-                } else if i == 0 && j == n - 1 {
-                    sides[j as usize]
-                } else if let Some(&(_, e)) = diagonals.iter().find(|d| d.0 == (i, j)) {
+                let key = (i.min(j), i.max(j));
+                edges[k] = if key.1 == key.0 + 1 {
+                    sides[key.0 as usize]
+                } else if key == (0, n - 1) {
+                    sides[key.1 as usize]
+                } else if let Some(&(_, e)) = diagonals.iter().find(|d| d.0 == key) {
                     e
                 } else {
                     let (e, made) = mesh.find_or_make_edge(corners[k], corners[(k + 1) % 3])?;
@@ -159,7 +162,7 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
                         result.edges.push(e);
                     }
                     if n <= SCANNED_RING {
-                        diagonals.push(((i, j), e));
+                        diagonals.push((key, e));
                     }
                     e
                 };
