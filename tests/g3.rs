@@ -418,3 +418,36 @@ fn relative_length_without_a_preceding_edge_is_a_located_runtime_error() {
         err.error
     );
 }
+
+/// `graftal run` without stats drops the layers the export does not read
+/// (turtle frames, ages) before exporting; the export must not change.
+#[test]
+fn dropping_unexported_layers_leaves_the_export_unchanged() {
+    let mut dropped = 0;
+    for text in [
+        include_str!("../rules/flags.toml"),
+        include_str!("../rules/cottage.toml"),
+        include_str!("../rules/tree.toml"),
+        include_str!("../rules/bracket.toml"),
+    ] {
+        let p = toml(text);
+        let mut mesh = run_validated(&p, RunOptions::default()).mesh;
+        let full = graftal::grammar::export(&p, &mesh);
+        let had_frames = mesh
+            .attributes()
+            .layers()
+            .iter()
+            .any(|l| l.name == graftal::grammar::graph::HEADING);
+        dropped += usize::from(had_frames);
+        graftal::grammar::drop_unexported_layers(&mut mesh);
+        assert!(mesh
+            .attributes()
+            .layers()
+            .iter()
+            .all(|l| l.name != graftal::grammar::graph::HEADING && l.name != "age"));
+        mesh.validate().unwrap();
+        assert_eq!(graftal::grammar::export(&p, &mesh), full);
+    }
+    // The G³ models (flags, tree) carry frames to drop.
+    assert!(dropped >= 2);
+}

@@ -1037,6 +1037,13 @@ fn produce(context: &Context, v: &Variant) -> Produced {
             return fail(entry, kind, super::run_exit_code(e.kind), e.to_string());
         }
     };
+    if !context.want_stats {
+        // Nothing but the export reads the kernel mesh from here on: the
+        // layers it does not read go before it runs, the rest before the
+        // file is encoded, so peak memory is the larger of the mesh and its
+        // encoding, not their sum.
+        grammar::drop_unexported_layers(&mut result.mesh);
+    }
     let indexed = grammar::export(program, &result.mesh);
     let counts = Counts {
         vertices: result.mesh.vert_count(),
@@ -1044,9 +1051,6 @@ fn produce(context: &Context, v: &Variant) -> Produced {
         faces: result.mesh.face_count(),
     };
     if !context.want_stats {
-        // Nothing reads the kernel mesh after the export; freeing it before
-        // the file is encoded makes peak memory the larger of the two, not
-        // their sum.
         result.mesh = crate::kernel::Mesh::default();
     }
     let thumbnail = match args.contact_sheet.is_some().then(|| {

@@ -55,15 +55,18 @@ pub fn radius(mesh: &Mesh, v: VertId) -> f64 {
     }
 }
 
-pub fn age(mesh: &Mesh, domain: Domain, index: usize) -> i64 {
+pub fn age(mesh: &Mesh, domain: Domain, index: usize) -> i32 {
     match mesh.attr(AGE, domain, index) {
         Some(AttrValue::Int(a)) => a,
         _ => 0,
     }
 }
 
-pub fn set_age(mesh: &mut Mesh, domain: Domain, index: usize, generation: i64) {
-    let _ = mesh.set_attr(AGE, domain, index, AttrValue::Int(generation));
+/// Records the generation that made a primitive. Generations count steps
+/// (at most 10⁶ after unrolling), so the 32-bit layer holds every one.
+pub fn set_age(mesh: &mut Mesh, domain: Domain, index: usize, generation: u32) {
+    let age = i32::try_from(generation).unwrap_or(i32::MAX);
+    let _ = mesh.set_attr(AGE, domain, index, AttrValue::Int(age));
 }
 
 pub fn set_radius(mesh: &mut Mesh, v: VertId, r: f64) {
@@ -72,8 +75,13 @@ pub fn set_radius(mesh: &mut Mesh, v: VertId, r: f64) {
 
 /// Stores `frame` on a vertex or an edge.
 pub fn set_frame(mesh: &mut Mesh, domain: Domain, index: usize, frame: &Frame) {
-    let _ = mesh.set_attr(HEADING, domain, index, AttrValue::Vector(frame.h));
-    let _ = mesh.set_attr(LEFT, domain, index, AttrValue::Vector(frame.l));
+    set_heading_left(mesh, domain, index, frame.h, frame.l);
+}
+
+/// Stores a frame given by its heading and left (up is H × L on reading).
+pub fn set_heading_left(mesh: &mut Mesh, domain: Domain, index: usize, h: DVec3, l: DVec3) {
+    let _ = mesh.set_attr(HEADING, domain, index, AttrValue::Vector(h));
+    let _ = mesh.set_attr(LEFT, domain, index, AttrValue::Vector(l));
 }
 
 pub fn node_frame(mesh: &Mesh, v: VertId) -> Frame {

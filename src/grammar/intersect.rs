@@ -15,7 +15,7 @@
 use glam::DVec3;
 use rustc_hash::FxHashSet;
 
-use super::commands::Plan;
+use super::commands::{Fan, Plan};
 use super::graph::{self, RADIUS};
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::intersect::{Element, IntersectionIndex, WireThickness};
@@ -58,7 +58,13 @@ impl Guard {
     /// Whether applying `plan` of a `kind` command would make a product
     /// that intersects the model (what the application reshapes is tested
     /// in its new shape only).
-    pub fn would_intersect(&mut self, mesh: &Mesh, kind: CommandKind, plan: &Plan) -> bool {
+    pub fn would_intersect(
+        &mut self,
+        mesh: &Mesh,
+        kind: CommandKind,
+        plan: &Plan,
+        fan: Option<&Fan>,
+    ) -> bool {
         let index = self
             .index
             .get_or_insert_with(|| IntersectionIndex::from_mesh(mesh, WIRES));
@@ -66,7 +72,7 @@ impl Guard {
             segments,
             faces,
             skip,
-        } = tests(mesh, kind, plan);
+        } = tests(mesh, kind, plan, fan);
         let left_out = |e: Element| skip.contains(&e);
         let hit = segments.iter().any(|s| {
             index.segment_hits_except(s.ends[0], s.ends[1], s.thickness, &s.attached, &left_out)
@@ -138,7 +144,7 @@ struct Tests {
     skip: FxHashSet<Element>,
 }
 
-fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan) -> Tests {
+fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan, fan: Option<&Fan>) -> Tests {
     let mut t = Tests {
         segments: Vec::new(),
         faces: Vec::new(),
@@ -146,10 +152,10 @@ fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan) -> Tests {
     };
     let p = |v: VertId| mesh.position(v);
     let r = |v: VertId| graph::radius(mesh, v);
-    let new_radius = |from: VertId| plan.radius.unwrap_or_else(|| r(from));
+    let new_radius = |from: VertId| plan.radius().unwrap_or_else(|| r(from));
     match kind {
         CommandKind::CreateEdge => {
-            let n0 = VertId::from_index(plan.target);
+            let n0 = VertId::from_index(plan.target());
             t.segments.push(Segment {
                 ends: [p(n0), plan.position],
                 thickness: r(n0).max(new_radius(n0)),
@@ -157,7 +163,7 @@ fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan) -> Tests {
             });
         }
         CommandKind::SplitEdge => {
-            let edge = EdgeId::from_index(plan.target);
+            let edge = EdgeId::from_index(plan.target());
             let [n0, n1] = mesh.edge_verts(edge);
             let radius = new_radius(n0);
             for n in [n0, n1] {
@@ -187,7 +193,7 @@ fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan) -> Tests {
             }
         }
         CommandKind::CreateFace => {
-            let edge = EdgeId::from_index(plan.target);
+            let edge = EdgeId::from_index(plan.target());
             let [n0, n1] = mesh.edge_verts(edge);
             skip_wire(mesh, edge, &mut t.skip);
             t.faces.push(Ring {
@@ -195,9 +201,13 @@ fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan) -> Tests {
                 attached: vec![n0, n1],
             });
         }
-        CommandKind::SplitFace => split_face_tests(mesh, plan, &mut t),
+        CommandKind::SplitFace => {
+            if let Some(fan) = fan {
+                split_face_tests(mesh, plan, fan, &mut t);
+            }
+        }
         CommandKind::EditNode => {
-            let v = VertId::from_index(plan.target);
+            let v = VertId::from_index(plan.target());
             let radius = new_radius(v);
             for e in mesh.vert_edges(v) {
                 t.skip.insert(Element::Edge(e));
@@ -226,18 +236,18 @@ fn tests(mesh: &Mesh, kind: CommandKind, plan: &Plan) -> Tests {
     t
 }
 
-fn split_face_tests(mesh: &Mesh, plan: &Plan, t: &mut Tests) {
-    let f = FaceId::from_index(plan.target);
+fn split_face_tests(mesh: &Mesh, plan: &Plan, fan: &Fan, t: &mut Tests) {
+    let f = FaceId::from_index(plan.target());
     let ring: Vec<VertId> = mesh.face_verts(f).collect();
     let p = |v: VertId| mesh.position(v);
-    let picked = &plan.nodes;
+    let picked = &fan.nodes;
     match picked.len() {
         0 => {}
         1 => {
             let r = graph::radius(mesh, picked[0]);
             t.segments.push(Segment {
                 ends: [p(picked[0]), plan.position],
-                thickness: r.max(plan.radius.unwrap_or(r)),
+                thickness: r.max(plan.radius().unwrap_or(r)),
                 attached: vec![picked[0]],
             });
         }

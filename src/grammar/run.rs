@@ -29,7 +29,7 @@ use crate::rules::program::{
 use crate::rules::program::{COLOR_LAYER, PART_LAYER};
 use crate::rules::random;
 
-use super::commands::{self, CommandError, Plan};
+use super::commands::{self, CommandError, Fan, Plan};
 use super::graph::{self, Frame};
 use super::properties::{self, Context};
 use super::scope::{Measure, Reference, Scope};
@@ -879,6 +879,8 @@ impl Runner<'_> {
         let reference = self.reference();
         let mut made = Selection::new();
         let mut plans: Vec<Plan> = Vec::with_capacity(matched.len());
+        // `split_face` only: each plan's fan, parallel to `plans`.
+        let mut fans: Vec<Fan> = Vec::new();
         for &i in matched {
             if let Some(call) = call {
                 if let Some(products) = self.applied.get(&(call, step.uid, i as u32)) {
@@ -906,14 +908,14 @@ impl Runner<'_> {
             }
             let (seed, key) = (self.seed, step.key);
             let spread = |draw: u64| 2.0 * random::unit(seed, key, i as u64, draw) - 1.0;
-            let mut plan = {
+            let (plan, up) = {
                 let mut eval = |c: &Condition| self.eval(mesh, step, generation, i, step.domain, c);
                 commands::plan(mesh, command, i, &reference, &mut eval, &spread)
             }
             .map_err(|e| fail(i, e))?;
             if command.kind == CommandKind::SplitFace {
                 let ring: Vec<VertId> = mesh.face_verts(FaceId::from_index(i)).collect();
-                plan.nodes = match &command.nodes {
+                let nodes = match &command.nodes {
                     None => ring,
                     Some(c) => ring
                         .into_iter()
@@ -922,33 +924,40 @@ impl Runner<'_> {
                         })
                         .collect(),
                 };
+                fans.push(Fan { up, nodes });
             }
             plans.push(plan);
         }
         tally.applied = plans.len();
         // Each plan adds at most a node, a few edges and faces per side.
-        let coming: usize = plans.iter().map(|p| 4 + 2 * p.nodes.len()).sum();
+        let coming: usize = 4 * plans.len() + fans.iter().map(|f| 2 * f.nodes.len()).sum::<usize>();
         self.check_size(mesh, step, coming)?;
         let policy = step.policy.unwrap_or(self.policy());
         let testing = policy == Policy::Intersect;
-        let mut order: Vec<usize> = (0..plans.len()).collect();
-        // Under `intersect` an application is tested against what the ones
-        // before it made, so the order stays canonical (ascending target).
-        if let (Some(shuffle), false) = (self.shuffle, testing) {
-            // Testing hook: a seeded Fisher–Yates shuffle.
+        // Plans apply in plan order (ascending target). Under `intersect` an
+        // application is tested against what the ones before it made, so
+        // the order stays canonical; otherwise the testing hook may shuffle
+        // it (a seeded Fisher–Yates), and only then is an order list kept.
+        let shuffle = self.shuffle.filter(|_| !testing);
+        let order: Option<Vec<usize>> = shuffle.map(|shuffle| {
+            let mut order: Vec<usize> = (0..plans.len()).collect();
             for k in (1..order.len()).rev() {
                 let j = random::int_in(shuffle, 0, k as u64, 0, 0, k as i64) as usize;
                 order.swap(k, j);
             }
-        }
-        // New nodes with their plan's position, so they can be listed in
-        // plan order below: one flat list, not a vector and a heap block per
-        // plan (6 MB of the peak at 216k plans).
-        let shuffled = self.shuffle.is_some() && !testing;
-        let mut new_nodes: Vec<(u32, VertId)> = Vec::new();
-        for k in order {
+            order
+        });
+        // The nodes the plans make, for the merge below in plan order: one
+        // flat list (not a vector and a heap block per plan: 6 MB of the
+        // peak at 216k plans), tagged with the plan only when shuffled.
+        let mut new_nodes: Vec<VertId> = Vec::new();
+        let mut new_node_plans: Vec<u32> = Vec::new();
+        let count = plans.len();
+        for step_k in 0..count {
+            let k = order.as_ref().map_or(step_k, |order| order[step_k]);
             let plan = &plans[k];
-            if testing && self.guard.would_intersect(mesh, command.kind, plan) {
+            let fan = fans.get(k);
+            if testing && self.guard.would_intersect(mesh, command.kind, plan, fan) {
                 tally.rejected += 1;
                 tally.applied -= 1;
                 let reaction = step.on_intersection.unwrap_or(self.reaction());
@@ -957,7 +966,7 @@ impl Runner<'_> {
                         step,
                         StepError::Intersects {
                             domain: step.domain,
-                            index: plan.target,
+                            index: plan.target(),
                             op: step.op.name(),
                             uncaught: "",
                         },
@@ -977,16 +986,19 @@ impl Runner<'_> {
                     }
                 }
             }
-            let products = commands::apply(mesh, command.kind, plan, i64::from(generation))
-                .map_err(|e| fail(plan.target, e))?;
+            let products = commands::apply(mesh, command.kind, plan, fan, generation)
+                .map_err(|e| fail(plan.target(), e))?;
             if testing {
                 self.guard.accept(mesh, &products);
             }
             if let Some(call) = call {
                 self.applied
-                    .insert((call, step.uid, plan.target as u32), products.clone());
+                    .insert((call, step.uid, plan.target() as u32), products.clone());
             }
-            new_nodes.extend(products.verts.iter().map(|&v| (k as u32, v)));
+            new_nodes.extend_from_slice(&products.verts);
+            if order.is_some() {
+                new_node_plans.extend(std::iter::repeat_n(k as u32, products.verts.len()));
+            }
             made.append(&products);
         }
         // Thesis §3.1.2.1: after the command, the nodes it made (or, for
@@ -995,14 +1007,21 @@ impl Runner<'_> {
         // follow the order plans were applied in, and the first listed of
         // several new nodes survives.
         let touched: Vec<VertId> = if command.kind == CommandKind::EditNode {
-            plans.iter().map(|p| VertId::from_index(p.target)).collect()
+            plans
+                .iter()
+                .map(|p| VertId::from_index(p.target()))
+                .collect()
+        } else if order.is_some() {
+            // Stable: a plan's nodes keep their order.
+            let mut tagged: Vec<(u32, VertId)> =
+                new_node_plans.into_iter().zip(new_nodes).collect();
+            tagged.sort_by_key(|&(k, _)| k);
+            tagged.into_iter().map(|(_, v)| v).collect()
         } else {
-            if shuffled {
-                // Stable: a plan's nodes keep their order.
-                new_nodes.sort_by_key(|&(k, _)| k);
-            }
-            new_nodes.into_iter().map(|(_, v)| v).collect()
+            new_nodes
         };
+        // The merge and the bookkeeping below do not read the plans.
+        drop((plans, fans, order));
         let reshapes = matches!(
             command.kind,
             CommandKind::SplitEdge | CommandKind::SplitFace | CommandKind::EditNode

@@ -1,9 +1,17 @@
 //! Named per-element attribute layers.
 //!
-//! A layer stores one value per arena slot of its domain (vertex, edge or
-//! face): scalars (`f64`), vectors (`DVec3`) or integers (`i64`). Later stages
-//! keep node radius, turtle frame and age here. Layers are kept sorted by
-//! (domain, name) so iteration order, and therefore output, is deterministic.
+//! A layer holds one value per arena slot of its domain (vertex, edge or
+//! face): scalars (`f64`), vectors (`DVec3`) or integers (`i32`). Later
+//! stages keep node radius, turtle frame, age, part and material here.
+//! Layers are kept sorted by (domain, name) so iteration order, and
+//! therefore output, is deterministic.
+//!
+//! Storage is a prefix: values are stored for slots `0..len()` and every
+//! slot past it holds the layer's default. A layer that is never given
+//! another value (the part and material of a model without looks, say)
+//! costs nothing however many elements the mesh grows, and new elements
+//! past the stored prefix need no write. Writing a non-default value past
+//! the prefix extends it. "Default" is bitwise, so `-0.0` is stored.
 //!
 //! Euler operators give new elements the layer's default value or carry
 //! values over (split edge interpolates, split face copies); high-level
@@ -13,12 +21,12 @@ use glam::DVec3;
 
 use super::ids::Domain;
 
-/// The values of one layer, indexed by slot.
-#[derive(Clone, Debug, PartialEq)]
+/// The stored prefix of one layer's values, indexed by slot.
+#[derive(Clone, Debug)]
 pub enum LayerData {
     Scalar(Vec<f64>),
     Vector(Vec<DVec3>),
-    Int(Vec<i64>),
+    Int(Vec<i32>),
 }
 
 /// The kind of value a layer stores.
@@ -34,7 +42,7 @@ pub enum LayerKind {
 pub enum AttrValue {
     Scalar(f64),
     Vector(DVec3),
-    Int(i64),
+    Int(i32),
 }
 
 impl AttrValue {
@@ -45,22 +53,46 @@ impl AttrValue {
             AttrValue::Int(_) => LayerKind::Int,
         }
     }
+
+    /// Bit-for-bit equality (`-0.0 ≠ 0.0`, a NaN equals the same NaN): what
+    /// decides whether a value needs storing.
+    fn same_bits(self, other: AttrValue) -> bool {
+        match (self, other) {
+            (AttrValue::Scalar(a), AttrValue::Scalar(b)) => a.to_bits() == b.to_bits(),
+            (AttrValue::Vector(a), AttrValue::Vector(b)) => {
+                a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)
+            }
+            (AttrValue::Int(a), AttrValue::Int(b)) => a == b,
+            _ => false,
+        }
+    }
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Layer {
     pub name: String,
     pub domain: Domain,
     pub default: AttrValue,
-    pub data: LayerData,
+    data: LayerData,
+}
+
+/// Layers are equal when they agree on every slot, however long the
+/// stored prefixes are.
+impl PartialEq for Layer {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+            && self.domain == other.domain
+            && self.default == other.default
+            && (0..self.len().max(other.len())).all(|i| self.get(i) == other.get(i))
+    }
 }
 
 impl Layer {
-    fn new(name: &str, domain: Domain, default: AttrValue, len: usize) -> Self {
+    fn new(name: &str, domain: Domain, default: AttrValue) -> Self {
         let data = match default {
-            AttrValue::Scalar(x) => LayerData::Scalar(vec![x; len]),
-            AttrValue::Vector(x) => LayerData::Vector(vec![x; len]),
-            AttrValue::Int(x) => LayerData::Int(vec![x; len]),
+            AttrValue::Scalar(_) => LayerData::Scalar(Vec::new()),
+            AttrValue::Vector(_) => LayerData::Vector(Vec::new()),
+            AttrValue::Int(_) => LayerData::Int(Vec::new()),
         };
         Self {
             name: name.to_owned(),
@@ -74,6 +106,8 @@ impl Layer {
         self.default.kind()
     }
 
+    /// How many slots have a stored value (every later slot holds the
+    /// default).
     pub fn len(&self) -> usize {
         match &self.data {
             LayerData::Scalar(v) => v.len(),
@@ -86,61 +120,90 @@ impl Layer {
         self.len() == 0
     }
 
+    /// The value of `slot` (the default past the stored prefix).
+    #[inline]
     pub fn get(&self, slot: usize) -> AttrValue {
         match &self.data {
-            LayerData::Scalar(v) => AttrValue::Scalar(v[slot]),
-            LayerData::Vector(v) => AttrValue::Vector(v[slot]),
-            LayerData::Int(v) => AttrValue::Int(v[slot]),
+            LayerData::Scalar(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Scalar(x)),
+            LayerData::Vector(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Vector(x)),
+            LayerData::Int(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Int(x)),
         }
     }
 
-    fn ensure_len(&mut self, len: usize) {
-        match (&mut self.data, self.default) {
-            (LayerData::Scalar(v), AttrValue::Scalar(d)) if v.len() < len => v.resize(len, d),
-            (LayerData::Vector(v), AttrValue::Vector(d)) if v.len() < len => v.resize(len, d),
-            (LayerData::Int(v), AttrValue::Int(d)) if v.len() < len => v.resize(len, d),
-            _ => {}
+    /// A scalar layer's value of `slot`; `None` for other kinds.
+    #[inline]
+    pub fn scalar(&self, slot: usize) -> Option<f64> {
+        match (&self.data, self.default) {
+            (LayerData::Scalar(v), AttrValue::Scalar(d)) => Some(v.get(slot).copied().unwrap_or(d)),
+            _ => None,
         }
     }
 
-    fn reset(&mut self, slot: usize) {
-        self.ensure_len(slot + 1);
+    fn extend_to(&mut self, len: usize) {
         match (&mut self.data, self.default) {
-            (LayerData::Scalar(v), AttrValue::Scalar(d)) => v[slot] = d,
-            (LayerData::Vector(v), AttrValue::Vector(d)) => v[slot] = d,
-            (LayerData::Int(v), AttrValue::Int(d)) => v[slot] = d,
+            (LayerData::Scalar(v), AttrValue::Scalar(d)) => v.resize(len, d),
+            (LayerData::Vector(v), AttrValue::Vector(d)) => v.resize(len, d),
+            (LayerData::Int(v), AttrValue::Int(d)) => v.resize(len, d),
             _ => unreachable!("layer data and default always share a kind"),
         }
     }
 
-    fn copy(&mut self, from: usize, to: usize) {
-        self.ensure_len(from.max(to) + 1);
-        match &mut self.data {
-            LayerData::Scalar(v) => v[to] = v[from],
-            LayerData::Vector(v) => v[to] = v[from],
-            LayerData::Int(v) => v[to] = v[from],
+    /// A new element in `slot`: the default, which past the prefix is
+    /// already what the slot reads.
+    fn reset(&mut self, slot: usize) {
+        if slot < self.len() {
+            self.write(slot, self.default);
         }
+    }
+
+    fn copy(&mut self, from: usize, to: usize) {
+        let value = self.get(from);
+        self.store(to, value);
     }
 
     /// Linear blend; integers take the value of the nearer end.
     fn interpolate(&mut self, a: usize, b: usize, t: f64, to: usize) {
-        self.ensure_len(a.max(b).max(to) + 1);
-        match &mut self.data {
-            LayerData::Scalar(v) => v[to] = v[a] + (v[b] - v[a]) * t,
-            LayerData::Vector(v) => v[to] = v[a].lerp(v[b], t),
-            LayerData::Int(v) => v[to] = if t < 0.5 { v[a] } else { v[b] },
-        }
+        let value = match (self.get(a), self.get(b)) {
+            (AttrValue::Scalar(x), AttrValue::Scalar(y)) => AttrValue::Scalar(x + (y - x) * t),
+            (AttrValue::Vector(x), AttrValue::Vector(y)) => AttrValue::Vector(x.lerp(y, t)),
+            (x, y) => {
+                if t < 0.5 {
+                    x
+                } else {
+                    y
+                }
+            }
+        };
+        self.store(to, value);
     }
 
     fn set(&mut self, slot: usize, value: AttrValue) -> Result<(), LayerKind> {
-        self.ensure_len(slot + 1);
+        if value.kind() != self.kind() {
+            return Err(self.kind());
+        }
+        self.store(slot, value);
+        Ok(())
+    }
+
+    /// Stores a value of the layer's kind, extending the prefix only for a
+    /// value that is not the default.
+    fn store(&mut self, slot: usize, value: AttrValue) {
+        if slot >= self.len() {
+            if value.same_bits(self.default) {
+                return;
+            }
+            self.extend_to(slot + 1);
+        }
+        self.write(slot, value);
+    }
+
+    fn write(&mut self, slot: usize, value: AttrValue) {
         match (&mut self.data, value) {
             (LayerData::Scalar(v), AttrValue::Scalar(x)) => v[slot] = x,
             (LayerData::Vector(v), AttrValue::Vector(x)) => v[slot] = x,
             (LayerData::Int(v), AttrValue::Int(x)) => v[slot] = x,
-            _ => return Err(self.kind()),
+            _ => unreachable!("layer data and value share a kind (checked by the caller)"),
         }
-        Ok(())
     }
 }
 
@@ -157,13 +220,12 @@ impl Attributes {
         name: &str,
         domain: Domain,
         default: AttrValue,
-        capacity: usize,
     ) -> Result<usize, LayerKind> {
         match self.find(name, domain) {
             Some(i) if self.layers[i].kind() == default.kind() => Ok(i),
             Some(i) => Err(self.layers[i].kind()),
             None => {
-                let layer = Layer::new(name, domain, default, capacity);
+                let layer = Layer::new(name, domain, default);
                 let at = self
                     .layers
                     .partition_point(|l| (l.domain, l.name.as_str()) < (domain, name));
@@ -239,5 +301,69 @@ impl Attributes {
                 let _ = self.layers[i].set(to, layer.get(from));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layer(default: AttrValue) -> Layer {
+        Layer::new("x", Domain::Vert, default)
+    }
+
+    #[test]
+    fn a_layer_stores_nothing_until_a_value_differs_from_its_default() {
+        let mut l = layer(AttrValue::Int(-1));
+        for slot in 0..1000 {
+            l.reset(slot);
+            l.copy(slot / 2, slot);
+            l.interpolate(0, slot, 0.7, slot);
+            l.set(slot, AttrValue::Int(-1)).unwrap();
+        }
+        assert_eq!(l.len(), 0);
+        assert_eq!(l.get(999), AttrValue::Int(-1));
+        l.set(10, AttrValue::Int(4)).unwrap();
+        assert_eq!(l.len(), 11);
+        assert_eq!(
+            (l.get(9), l.get(10), l.get(11)),
+            (AttrValue::Int(-1), AttrValue::Int(4), AttrValue::Int(-1))
+        );
+        // A new element inside the prefix is given the default again.
+        l.reset(10);
+        assert_eq!(l.get(10), AttrValue::Int(-1));
+        assert_eq!(l.set(3, AttrValue::Scalar(1.0)), Err(LayerKind::Int));
+    }
+
+    #[test]
+    fn defaults_are_compared_bit_for_bit() {
+        let mut l = layer(AttrValue::Scalar(0.0));
+        l.set(5, AttrValue::Scalar(0.0)).unwrap();
+        assert_eq!(l.len(), 0);
+        l.set(5, AttrValue::Scalar(-0.0)).unwrap();
+        assert_eq!(l.len(), 6);
+        let AttrValue::Scalar(x) = l.get(5) else {
+            unreachable!()
+        };
+        assert!(x == 0.0 && x.is_sign_negative());
+        let mut v = layer(AttrValue::Vector(DVec3::Z));
+        v.interpolate(0, 1, 0.5, 2);
+        assert_eq!(v.len(), 0);
+        v.set(1, AttrValue::Vector(DVec3::X)).unwrap();
+        v.interpolate(0, 1, 0.5, 3);
+        assert_eq!(v.get(3), AttrValue::Vector(DVec3::new(0.5, 0.0, 0.5)));
+    }
+
+    #[test]
+    fn layers_are_equal_by_value_whatever_their_stored_length() {
+        let mut a = layer(AttrValue::Scalar(1.0));
+        let mut b = layer(AttrValue::Scalar(1.0));
+        a.set(7, AttrValue::Scalar(2.0)).unwrap();
+        b.set(7, AttrValue::Scalar(2.0)).unwrap();
+        b.set(20, AttrValue::Scalar(3.0)).unwrap();
+        assert_ne!(a, b);
+        b.set(20, AttrValue::Scalar(1.0)).unwrap();
+        assert_eq!(a, b);
+        assert!(a.len() < b.len());
     }
 }

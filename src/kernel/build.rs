@@ -20,7 +20,7 @@
 
 use glam::DVec3;
 
-use super::attrs::{AttrValue, LayerData};
+use super::attrs::{AttrValue, Layer, LayerKind};
 use super::ids::{Domain, EdgeId, FaceId, VertId};
 use super::mesh::Mesh;
 use super::ops::Selection;
@@ -240,17 +240,13 @@ pub fn append_indexed(mesh: &mut Mesh, indexed: &IndexedMesh) -> Result<Selectio
 impl Mesh {
     /// Hands the mesh to `sink` in canonical order (see the module doc).
     pub fn emit(&self, sink: &mut dyn MeshSink) -> Result<(), SinkError> {
-        let layers: Vec<(&str, &[f64])> = self
+        let layers: Vec<&Layer> = self
             .attributes()
             .layers()
             .iter()
-            .filter(|layer| layer.domain == Domain::Vert)
-            .filter_map(|layer| match &layer.data {
-                LayerData::Scalar(values) => Some((layer.name.as_str(), values.as_slice())),
-                _ => None,
-            })
+            .filter(|layer| layer.domain == Domain::Vert && layer.kind() == LayerKind::Scalar)
             .collect();
-        let names: Vec<&str> = layers.iter().map(|(n, _)| *n).collect();
+        let names: Vec<&str> = layers.iter().map(|l| l.name.as_str()).collect();
         let wires: Vec<EdgeId> = self.edge_ids().filter(|&e| self.is_wire_edge(e)).collect();
         let run = |sink: &mut dyn MeshSink| -> Result<(), SinkError> {
             sink.begin(&Begin {
@@ -264,8 +260,8 @@ impl Mesh {
             let mut scalars = vec![0.0; layers.len()];
             for (i, v) in self.vert_ids().enumerate() {
                 index_of[v.index()] = i as u32;
-                for (slot, (_, values)) in scalars.iter_mut().zip(&layers) {
-                    *slot = values[v.index()];
+                for (slot, layer) in scalars.iter_mut().zip(&layers) {
+                    *slot = layer.scalar(v.index()).unwrap_or_default();
                 }
                 sink.vertex(self.position(v), &scalars)?;
             }

@@ -457,14 +457,7 @@ impl Mesh {
         domain: Domain,
         default: AttrValue,
     ) -> Result<(), LayerKind> {
-        let capacity = match domain {
-            Domain::Vert => self.verts.capacity(),
-            Domain::Edge => self.edges.capacity(),
-            Domain::Face => self.faces.capacity(),
-        };
-        self.attributes
-            .add_layer(name, domain, default, capacity)
-            .map(|_| ())
+        self.attributes.add_layer(name, domain, default).map(|_| ())
     }
 
     pub fn remove_layer(&mut self, name: &str, domain: Domain) -> bool {

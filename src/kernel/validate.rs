@@ -272,15 +272,17 @@ impl Mesh {
     }
 
     fn validate_layers(&self) -> Result<(), ValidationError> {
+        // A layer stores a prefix of its slots (the rest read the default);
+        // it never holds values for slots the arena does not have.
         for layer in self.attributes.layers() {
-            let needed = match layer.domain {
+            let slots = match layer.domain {
                 Domain::Vert => self.vert_capacity(),
                 Domain::Edge => self.edge_capacity(),
                 Domain::Face => self.face_capacity(),
             };
             ensure!(
-                layer.len() >= needed,
-                "{} layer `{}` has {} values for {needed} slots",
+                layer.len() <= slots,
+                "{} layer `{}` has {} values for {slots} slots",
                 layer.domain,
                 layer.name,
                 layer.len()

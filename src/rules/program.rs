@@ -69,7 +69,7 @@ pub const COLOR_LAYER: &str = "color";
 /// Face layer holding each face's material index, or [`NO_MATERIAL`].
 pub const MATERIAL_LAYER: &str = "material";
 /// A face whose step named no material: its part's applies.
-pub const NO_MATERIAL: i64 = -1;
+pub const NO_MATERIAL: i32 = -1;
 
 /// How the model looks in its files: its parts and materials.
 #[derive(Debug, Clone, Default)]

@@ -289,7 +289,7 @@ fn welding_a_triangle_soup_rebuilds_the_shared_grid() {
                     "tag",
                     Domain::Face,
                     f.index(),
-                    AttrValue::Int(f.index() as i64),
+                    AttrValue::Int(f.index() as i32),
                 );
             }
         }
@@ -305,7 +305,7 @@ fn welding_a_triangle_soup_rebuilds_the_shared_grid() {
     for f in m.face_ids() {
         assert_eq!(
             m.attr("tag", Domain::Face, f.index()),
-            Some(AttrValue::Int(f.index() as i64))
+            Some(AttrValue::Int(f.index() as i32))
         );
         assert!((m.face_normal(f) - DVec3::Z).length() < 1e-12);
     }
