@@ -72,7 +72,14 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
             if let Some(f) = pick(rng, &faces) {
                 let ring: Vec<VertId> = mesh.face_verts(f).collect();
                 let (a, b) = (pick(rng, &ring).unwrap(), pick(rng, &ring).unwrap());
-                let _ = mesh.split_face(f, a, b);
+                // Half the time the pieces restart at a corner (of the
+                // face or not): what triangulate's quad split does.
+                if rng.unit() < 0.5 {
+                    let first = pick(rng, &verts).unwrap_or(a);
+                    let _ = mesh.split_face_starting_at(f, a, b, first);
+                } else {
+                    let _ = mesh.split_face(f, a, b);
+                }
             }
             "split_face"
         }

@@ -470,6 +470,43 @@ impl Mesh {
         a: VertId,
         b: VertId,
     ) -> Result<(FaceId, EdgeId), KernelError> {
+        let (g, e) = self.split_face_unrefreshed(f, a, b)?;
+        self.refresh_normal(f);
+        self.refresh_normal(g);
+        Ok((g, e))
+    }
+
+    /// [`Mesh::split_face`], then each piece's boundary starts at `first`
+    /// where the piece has that corner (where it has not, it starts as
+    /// `split_face` leaves it: `f` at `a`, the new face at `b`). What
+    /// `triangulate` uses to split a quad in place with its triangles
+    /// listed from the quad's first corner, as if made corner by corner.
+    pub fn split_face_starting_at(
+        &mut self,
+        f: FaceId,
+        a: VertId,
+        b: VertId,
+        first: VertId,
+    ) -> Result<(FaceId, EdgeId), KernelError> {
+        let (g, e) = self.split_face_unrefreshed(f, a, b)?;
+        for piece in [f, g] {
+            if let Some(l) = self.face_loop_at(piece, first) {
+                self.face_mut(piece).first_loop = l;
+            }
+            // After the restart: a normal sums its corners in boundary order.
+            self.refresh_normal(piece);
+        }
+        Ok((g, e))
+    }
+
+    /// The topology of [`Mesh::split_face`]; both pieces' stored normals
+    /// are left for the caller to refresh.
+    fn split_face_unrefreshed(
+        &mut self,
+        f: FaceId,
+        a: VertId,
+        b: VertId,
+    ) -> Result<(FaceId, EdgeId), KernelError> {
         self.check_face(f)?;
         self.check_two_verts(a, b)?;
         let la = self
@@ -524,8 +561,6 @@ impl Mesh {
         let fc = self.face_mut(f);
         fc.len = len_f;
         fc.first_loop = la;
-        self.refresh_normal(f);
-        self.refresh_normal(g);
         Ok((g, e))
     }
 

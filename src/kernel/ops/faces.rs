@@ -94,7 +94,10 @@ pub fn make_face_from_edges(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Selecti
 /// Newell plane, with its own fallbacks for degenerate outlines; should its
 /// output ever not be a triangulation of the ring, a fan from the first
 /// vertex is used instead). Each triangle copies the face's attributes and is
-/// wound like it; the face itself is killed.
+/// wound like it. A quad is split in place (it keeps its id on the triangle
+/// with its first side; the other is a new face); a larger face is killed
+/// and its triangles made anew. Every triangle starts at its lowest ring
+/// position, so both ways list corners alike.
 ///
 /// Result: the triangles now covering the given faces (given triangles
 /// included, untouched) and the new diagonal edges.
@@ -136,6 +139,26 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
             continue;
         }
         ring_triangles(&points, &mut triangles);
+        if ring.len() == 4 {
+            // A quad splits in place along its diagonal (one edge, one face
+            // and two loops, where rebuilding makes two faces and six
+            // loops): it keeps its id on the triangle with its first side,
+            // the new face gets its third, and both start at its first
+            // corner, listed as a rebuild would list them.
+            let along_0_2 = triangles.contains(&[0, 1, 2]);
+            let (a, b) = if along_0_2 {
+                (ring[0], ring[2])
+            } else {
+                (ring[3], ring[1])
+            };
+            let edges_before = mesh.edge_count();
+            let (g, e) = mesh.split_face_starting_at(f, a, b, ring[0])?;
+            if mesh.edge_count() > edges_before {
+                result.edges.push(e);
+            }
+            result.faces.extend([f, g]);
+            continue;
+        }
         let n = ring.len() as u32;
         diagonals.clear();
         for tri in &triangles {
@@ -501,6 +524,77 @@ mod tests {
         assert_eq!(r.faces.len(), 4);
         assert!(consistently_wound(&m));
         assert!(r.faces.iter().all(|&f| m.face_normal(f).is_finite()));
+    }
+
+    #[test]
+    fn quads_split_in_place_as_a_rebuild_would_list_them() {
+        // Convex quads and a dart whose reflex corner 1 forces the 1–3 cut,
+        // with an attribute to carry.
+        let mut m = Mesh::new();
+        m.add_layer("mat", Domain::Face, AttrValue::Int(0)).unwrap();
+        let quads = [
+            [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            [[4.0, 0.0], [3.2, 0.2], [3.0, 1.0], [3.0, 0.0]],
+            [[5.0, 0.0], [5.8, 0.8], [6.0, 2.0], [4.6, 0.8]],
+        ];
+        let mut rings = Vec::new();
+        for (k, q) in quads.iter().enumerate() {
+            let ring: Vec<VertId> = q
+                .iter()
+                .map(|&[x, y]| m.make_vert(DVec3::new(x, y, 0.0)))
+                .collect();
+            let f = m.make_face(&ring).unwrap();
+            m.set_attr("mat", Domain::Face, f.index(), AttrValue::Int(k as i32 + 1));
+            rings.push((f, ring));
+        }
+        let faces: Vec<FaceId> = rings.iter().map(|r| r.0).collect();
+        let r = triangulate(&mut m, &faces).unwrap();
+        m.validate().unwrap();
+        assert_eq!((r.faces.len(), r.edges.len()), (6, 3));
+        assert!(consistently_wound(&m));
+        for (k, (f, ring)) in rings.iter().enumerate() {
+            // The quad keeps its id on the triangle with its first side,
+            // listed from its first corner, with its attributes.
+            let kept: Vec<VertId> = m.face_verts(*f).collect();
+            assert_eq!(&kept[..2], &ring[..2], "quad {k}");
+            // The expected halves: what `ring_triangles` decides.
+            let points: Vec<DVec3> = ring.iter().map(|&v| m.position(v)).collect();
+            let mut tris = Vec::new();
+            ring_triangles(&points, &mut tris);
+            let halves: Vec<Vec<VertId>> = tris
+                .iter()
+                .map(|t| t.iter().map(|&i| ring[i as usize]).collect())
+                .collect();
+            let other = r
+                .faces
+                .iter()
+                .copied()
+                .find(|&g| {
+                    g != *f
+                        && m.face_verts(g).any(|v| v == ring[2])
+                        && m.face_verts(g).any(|v| v == ring[3])
+                })
+                .unwrap();
+            let got: Vec<Vec<VertId>> = [*f, other]
+                .iter()
+                .map(|&t| m.face_verts(t).collect())
+                .collect();
+            let mut want = halves.clone();
+            want.sort_by_key(|h| h.contains(&ring[1]) && h.contains(&ring[0]));
+            want.reverse();
+            assert_eq!(got, want, "quad {k}");
+            for t in [*f, other] {
+                assert_eq!(
+                    m.attr("mat", Domain::Face, t.index()),
+                    Some(AttrValue::Int(k as i32 + 1))
+                );
+                assert_eq!(m.face_normal(t), m.compute_face_normal(t));
+                assert!(m.face_normal(t).z > 0.0);
+            }
+        }
+        // The dart's 0–2 diagonal is outside it: it was cut 1–3.
+        let dart = &rings[1].1;
+        assert!(m.find_edge(dart[1], dart[3]).is_some() && m.find_edge(dart[0], dart[2]).is_none());
     }
 
     #[test]
