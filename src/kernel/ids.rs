@@ -7,6 +7,13 @@
 
 use std::fmt;
 
+/// An id that is an arena slot index: what slot-indexed scratch tables
+/// ([`super::ops::side_table`]) key by.
+pub(crate) trait SlotId: Copy + Ord {
+    fn slot(self) -> usize;
+    fn at_slot(index: usize) -> Self;
+}
+
 macro_rules! element_id {
     ($(#[$doc:meta])* $name:ident, $prefix:literal) => {
         $(#[$doc])*
@@ -24,6 +31,17 @@ macro_rules! element_id {
             #[inline]
             pub fn from_index(index: usize) -> Self {
                 Self(u32::try_from(index).expect("element index exceeds u32"))
+            }
+        }
+
+        impl SlotId for $name {
+            #[inline]
+            fn slot(self) -> usize {
+                self.index()
+            }
+            #[inline]
+            fn at_slot(index: usize) -> Self {
+                Self::from_index(index)
             }
         }
 

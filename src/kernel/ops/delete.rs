@@ -16,6 +16,7 @@
 //! edge, say) are skipped silently. Inputs are processed in ascending id
 //! order, so results do not depend on the order given.
 
+use super::side_table::{distinct_ids, SideTable};
 use super::{canonical, OpError, Selection};
 use crate::geom::UnionFind;
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
@@ -111,39 +112,52 @@ pub(crate) fn duplicate_mapped(
     for &f in &faces {
         edges.extend(mesh.face_edges(f));
     }
-    edges.sort_unstable();
-    edges.dedup();
+    let edges = distinct_ids(edges, mesh.edge_capacity());
     let mut verts = sel_verts;
     for &e in &edges {
         verts.extend(mesh.edge_verts(e));
     }
-    verts.sort_unstable();
-    verts.dedup();
+    let verts = distinct_ids(verts, mesh.vert_capacity());
+    let corners = faces.iter().map(|&f| mesh.face_len(f)).sum();
+    mesh.reserve(verts.len(), edges.len(), corners, faces.len());
 
     let mut vert_pairs = Vec::with_capacity(verts.len());
+    let mut vert_copy = SideTable::new(verts.len(), mesh.vert_capacity());
     for &v in &verts {
         let copy = mesh.make_vert(mesh.position(v));
         mesh.copy_vert_attrs(v, copy);
         vert_pairs.push((v, copy));
+        vert_copy.insert(v.index(), copy);
     }
     let map = |v: VertId| -> VertId {
-        let i = vert_pairs
-            .binary_search_by_key(&v, |&(original, _)| original)
-            .expect("every vertex of a copied edge or face is copied");
-        vert_pairs[i].1
+        *vert_copy
+            .get(v.index())
+            .expect("every vertex of a copied edge or face is copied")
     };
     let mut new_edges = Vec::with_capacity(edges.len());
+    let mut edge_copy = SideTable::new(edges.len(), mesh.edge_capacity());
     for &e in &edges {
         let [a, b] = mesh.edge_verts(e);
         let copy = mesh.make_edge(map(a), map(b))?;
         mesh.copy_edge_attrs(e, copy);
         new_edges.push(copy);
+        edge_copy.insert(e.index(), copy);
     }
     let mut new_faces = Vec::with_capacity(faces.len());
+    let (mut ring, mut sides) = (Vec::new(), Vec::new());
     for &f in &faces {
-        let ring: Vec<VertId> = mesh.face_verts(f).map(map).collect();
-        // The edges exist already (copied above): make_face finds them.
-        let copy = mesh.make_face(&ring)?;
+        ring.clear();
+        sides.clear();
+        for l in mesh.face_loops(f) {
+            ring.push(map(mesh.loop_vert(l)));
+            sides.push(
+                *edge_copy
+                    .get(mesh.loop_edge(l).index())
+                    .expect("every edge of a copied face is copied"),
+            );
+        }
+        // The copy's edges exist already (made above), side by side.
+        let copy = mesh.make_face_on_edges(&ring, &sides)?;
         mesh.copy_face_attrs(f, copy);
         new_faces.push(copy);
     }

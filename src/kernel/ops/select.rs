@@ -17,6 +17,7 @@
 //! Membership tests binary-search the sorted input, so a call costs
 //! O(k log k) in the size k of what it touches, never the size of the mesh.
 
+use super::side_table::distinct_ids;
 use super::{canonical, Selection};
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
@@ -79,6 +80,8 @@ pub fn select_from_faces(mesh: &Mesh, faces: &[FaceId]) -> Selection {
         verts.extend(mesh.face_verts(f));
         edges.extend(mesh.face_edges(f));
     }
+    let verts = distinct_ids(verts, mesh.vert_capacity());
+    let edges = distinct_ids(edges, mesh.edge_capacity());
     Selection::from_parts(verts, edges, faces)
 }
 
