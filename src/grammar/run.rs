@@ -953,8 +953,8 @@ impl Runner<'_> {
         let mut new_nodes: Vec<VertId> = Vec::new();
         let mut new_node_plans: Vec<u32> = Vec::new();
         let count = plans.len();
-        for step_k in 0..count {
-            let k = order.as_ref().map_or(step_k, |order| order[step_k]);
+        for nth in 0..count {
+            let k = order.as_ref().map_or(nth, |order| order[nth]);
             let plan = &plans[k];
             let fan = fans.get(k);
             if testing && self.guard.would_intersect(mesh, command.kind, plan, fan) {
