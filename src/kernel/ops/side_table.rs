@@ -64,11 +64,12 @@ impl<V> SideTable<V> {
 /// (one pass, no sort: a face list's corners name each vertex about four
 /// times), else by sorting. Same rule as [`SideTable::new`].
 pub(crate) fn distinct_ids<T: SlotId>(mut ids: Vec<T>, capacity: usize) -> Vec<T> {
-    if ids.windows(2).all(|w| w[0] < w[1]) {
-        return ids;
-    }
-    // Ids past the slots (a caller checks them afterwards) take the sort.
-    if capacity <= ids.len().saturating_mul(8) && ids.iter().all(|id| id.slot() < capacity) {
+    // Ids past the slots (a caller checks them afterwards) take the sort,
+    // as does a list already canonical (which `sort_ids` leaves alone).
+    let marking = capacity <= ids.len().saturating_mul(8)
+        && ids.iter().all(|id| id.slot() < capacity)
+        && !ids.windows(2).all(|w| w[0] < w[1]);
+    if marking {
         let mut marked = vec![false; capacity];
         for &id in &ids {
             marked[id.slot()] = true;
@@ -82,8 +83,7 @@ pub(crate) fn distinct_ids<T: SlotId>(mut ids: Vec<T>, capacity: usize) -> Vec<T
                 .map(|(i, _)| T::at_slot(i)),
         );
     } else {
-        ids.sort_unstable();
-        ids.dedup();
+        super::sort_ids(&mut ids);
     }
     ids
 }
