@@ -116,7 +116,7 @@ impl IndexedMesh {
     ///
     /// # Panics
     /// The iterator panics on malformed storage (see [`Self::validate`]).
-    pub fn polygons(&self) -> impl ExactSizeIterator<Item = &[u32]> + '_ {
+    pub fn polygons(&self) -> impl ExactSizeIterator<Item = &[u32]> + Clone + '_ {
         self.face_starts
             .windows(2)
             .map(|w| &self.face_indices[w[0] as usize..w[1] as usize])
@@ -394,9 +394,8 @@ impl IndexedMesh {
                 .polygons()
                 .enumerate()
                 .filter(|&(k, _)| self.polygon_material(k) == Some(index as u32))
-                .map(|(_, poly)| poly)
-                .collect::<Vec<_>>();
-            let closed = closed_and_oriented(self.positions.len(), polygons.iter().copied());
+                .map(|(_, poly)| poly);
+            let closed = closed_and_oriented(self.positions.len(), polygons);
             self.materials[index].double_sided = Some(!closed);
         }
     }
@@ -440,6 +439,9 @@ fn closed_and_oriented<'a>(
     vertices: usize,
     polygons: impl Iterator<Item = &'a [u32]> + Clone,
 ) -> bool {
+    if !reversal_balanced(polygons.clone()) {
+        return false;
+    }
     let mut start = vec![0u32; vertices + 1];
     let mut corners = 0usize;
     for poly in polygons.clone() {
@@ -473,6 +475,33 @@ fn closed_and_oriented<'a>(
             !from_a[i + 1..].contains(&b) && out(b).iter().filter(|&&c| c == a).count() == 1
         })
     })
+}
+
+/// A necessary condition for [`closed_and_oriented`], in one pass without
+/// allocating: on a closed, consistently oriented surface the half-edges
+/// a → b are the half-edges b → a reversed, so a sum of an asymmetric hash
+/// over each set agrees. A border (every open sheet) almost surely breaks
+/// the balance; only a balanced set goes on to the exact test.
+fn reversal_balanced<'a>(polygons: impl Iterator<Item = &'a [u32]>) -> bool {
+    let hash = |a: u32, b: u32| splitmix64((u64::from(a) << 32) | u64::from(b));
+    let (mut forward, mut backward) = (0u64, 0u64);
+    for poly in polygons {
+        let mut a = *poly.last().unwrap_or(&0);
+        for &b in poly {
+            forward = forward.wrapping_add(hash(a, b));
+            backward = backward.wrapping_add(hash(b, a));
+            a = b;
+        }
+    }
+    forward == backward
+}
+
+/// SplitMix64's finalizer: a bijection on `u64` that scatters every bit.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }
 
 /// Which axis points up in a file. graftal's kernel is Z-up; glTF is
@@ -699,6 +728,32 @@ impl VertexMerger {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn closedness_needs_every_half_edge_once_and_its_twin() {
+        const TETRA: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+        let closed = |polys: &[[u32; 3]]| {
+            let polys: Vec<&[u32]> = polys.iter().map(|p| &p[..]).collect();
+            let exact = closed_and_oriented(4, polys.iter().copied());
+            // The quick test never rejects a closed surface.
+            assert!(!exact || reversal_balanced(polys.iter().copied()));
+            exact
+        };
+        assert!(closed(&TETRA));
+        // Open: a face missing (a border), or no faces at all.
+        assert!(!closed(&TETRA[..3]));
+        assert!(!reversal_balanced(TETRA[..3].iter().map(|p| &p[..])));
+        assert!(!closed(&[]));
+        // One face wound the other way.
+        let mut flipped = TETRA;
+        flipped[0] = [0, 1, 2];
+        assert!(!closed(&flipped));
+        // Balanced but not closed: every half-edge twice (a doubled shell),
+        // which only the exact test catches.
+        let doubled: Vec<[u32; 3]> = TETRA.iter().chain(&TETRA).copied().collect();
+        assert!(reversal_balanced(doubled.iter().map(|p| &p[..])));
+        assert!(!closed(&doubled));
+    }
 
     #[test]
     fn empty_meshes_are_valid() {
