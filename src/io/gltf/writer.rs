@@ -169,19 +169,13 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                 let poly = mesh.polygon(k);
                 // The flat normal only where no corner normal is given; a
                 // triangle is its own triangulation.
-                let flat = if let &[a, b, c] = poly {
+                let flat = if smooth {
                     tri.triangles.clear();
-                    tri.triangles.push([0, 1, 2]);
-                    if smooth {
-                        [0.0; 3]
+                    if poly.len() == 3 {
+                        tri.triangles.push([0, 1, 2]);
                     } else {
-                        // What `tri.run` returns for a triangle, bit for bit,
-                        // without gathering it.
-                        let points = [a, b, c].map(|v| mesh.position(v));
-                        unit_f32(crate::geom::polygon::unit_normal(&points).unwrap_or(DVec3::Z))
+                        tri.run(mesh, poly);
                     }
-                } else if smooth {
-                    tri.run(mesh, poly);
                     [0.0; 3]
                 } else {
                     unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z))
