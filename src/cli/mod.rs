@@ -29,7 +29,6 @@ use clap::{Parser, Subcommand};
 
 use crate::grammar;
 use crate::io;
-use crate::kernel::build::mesh_from_indexed;
 use crate::rules::{Override, RuleError};
 
 /// Exit status for a failure at run time.
@@ -459,9 +458,8 @@ pub fn execute(command: Command) -> Result<(), Failure> {
             input,
         } => {
             let indexed = input.read_mesh(&mesh)?;
-            let (kernel_mesh, import) = mesh_from_indexed(&indexed)
+            let (report, gates, import) = stats::info_of(&indexed, tolerance)
                 .map_err(|e| Failure::Input(format!("{}: {e}", mesh.display())))?;
-            let (report, gates) = stats::report_and_gates(&kernel_mesh, tolerance);
             let text = if json {
                 format!("{}\n", stats::info_json(&mesh, &report, &gates, &import))
             } else {

@@ -6,12 +6,15 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::geom::sink::SinkError;
+use crate::geom::IndexedMesh;
 use crate::grammar::{FieldStats, RunOutput, StepStats, SurfaceStats};
-use crate::kernel::build::ImportReport;
+use crate::kernel::build::{builds_one_to_one, mesh_from_indexed, ImportReport};
 use glam::DVec3;
 
 use crate::kernel::intersect::{
-    count_close_points, self_intersection_search, PairLimits, PairSearch,
+    count_close_points, indexed_self_intersection_search, self_intersection_search, PairLimits,
+    PairSearch,
 };
 use crate::kernel::{FaceId, Mesh, MeshReport};
 use crate::rules::Program;
@@ -43,14 +46,37 @@ impl Gates {
 /// Both searches, side by side on two threads (each is deterministic on
 /// its own, so the answer does not depend on the thread count).
 fn gates(mesh: &Mesh, close_tolerance: f64) -> Gates {
-    let (self_intersections, close_vertices) = rayon::join(
+    searched(
         || self_intersection_search(mesh, PairLimits::for_items),
+        || mesh.vert_ids().map(|v| mesh.position(v)).collect(),
+        close_tolerance,
+    )
+}
+
+/// [`gates`] of the kernel mesh `indexed` builds one to one
+/// ([`builds_one_to_one`]), searched in the indexed mesh itself.
+fn indexed_gates(indexed: &IndexedMesh, close_tolerance: f64) -> Gates {
+    searched(
+        || indexed_self_intersection_search(indexed, PairLimits::for_items),
         || {
-            let points: Vec<DVec3> = mesh.vert_ids().map(|v| mesh.position(v)).collect();
-            let budget = PairLimits::for_items(points.len()).max_tests;
-            count_close_points(&points, close_tolerance, budget)
+            (0..indexed.positions.len() as u32)
+                .map(|i| indexed.position(i))
+                .collect()
         },
-    );
+        close_tolerance,
+    )
+}
+
+fn searched(
+    self_intersections: impl FnOnce() -> PairSearch<(FaceId, FaceId)> + Send,
+    points: impl FnOnce() -> Vec<DVec3> + Send,
+    close_tolerance: f64,
+) -> Gates {
+    let (self_intersections, close_vertices) = rayon::join(self_intersections, || {
+        let points = points();
+        let budget = PairLimits::for_items(points.len()).max_tests;
+        count_close_points(&points, close_tolerance, budget)
+    });
     Gates {
         self_intersections,
         close_vertices,
@@ -61,6 +87,29 @@ fn gates(mesh: &Mesh, close_tolerance: f64) -> Gates {
 /// The mesh report and both gates, computed side by side.
 pub fn report_and_gates(mesh: &Mesh, close_tolerance: f64) -> (MeshReport, Gates) {
     rayon::join(|| mesh.report(), || gates(mesh, close_tolerance))
+}
+
+/// What `graftal info` reports of an indexed mesh: the kernel mesh it
+/// builds, measured, with both gates. When it builds one to one the gates
+/// search the indexed mesh while the kernel mesh is built and measured
+/// (the same answers, found sooner: the build no longer waits in front of
+/// the searches).
+pub fn info_of(
+    indexed: &IndexedMesh,
+    close_tolerance: f64,
+) -> Result<(MeshReport, Gates, ImportReport), SinkError> {
+    if builds_one_to_one(indexed) {
+        let (built, gates) = rayon::join(
+            || mesh_from_indexed(indexed).map(|(mesh, import)| (mesh.report(), import)),
+            || indexed_gates(indexed, close_tolerance),
+        );
+        let (report, import) = built?;
+        Ok((report, gates, import))
+    } else {
+        let (mesh, import) = mesh_from_indexed(indexed)?;
+        let (report, gates) = report_and_gates(&mesh, close_tolerance);
+        Ok((report, gates, import))
+    }
 }
 
 #[derive(Serialize)]

@@ -620,6 +620,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
         }
         for index in 0..element.count {
             let index = index as usize;
+            let corners_before = mesh.face_indices.len();
             let mut position = [0.0; 3];
             let mut edge = [0u32; 2];
             let mut part = 0u32;
@@ -703,10 +704,13 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
                     line_parts.push(part);
                 }
                 "face" => {
-                    colors_read |= has_color;
                     polygon_parts.push(part);
-                    let corners = mesh.face_indices.len() - face_colors.len();
-                    face_colors.extend(std::iter::repeat_n(color, corners));
+                    if has_color {
+                        // Corners of faces without a colour are white.
+                        colors_read = true;
+                        face_colors.resize(corners_before, [1.0; 3]);
+                        face_colors.resize(mesh.face_indices.len(), color);
+                    }
                 }
                 _ => {}
             }
@@ -733,6 +737,7 @@ fn read_body(header: &Header, body: &mut dyn Body, path: &Path) -> Result<Indexe
         mesh.line_parts = line_parts;
     }
     if colors_read {
+        face_colors.resize(mesh.face_indices.len(), [1.0; 3]);
         mesh.corner_colors = face_colors;
     } else if !vertex_colors.is_empty() {
         mesh.corner_colors = mesh

@@ -67,11 +67,10 @@ impl<'m> KernelBuilder<'m> {
 
     /// What the emission made (ids ascending) and what it dropped.
     pub fn finish(self) -> (Selection, ImportReport) {
-        let mut edges: Vec<EdgeId> = self
-            .faces
-            .iter()
-            .flat_map(|&f| self.mesh.face_edges(f).collect::<Vec<_>>())
-            .collect();
+        let mut edges: Vec<EdgeId> = Vec::new();
+        for &f in &self.faces {
+            edges.extend(self.mesh.face_edges(f));
+        }
         edges.extend(&self.lines);
         let made = Selection::from_parts(self.verts, edges, self.faces);
         (made, self.report)
@@ -193,9 +192,8 @@ impl MeshSink for KernelBuilder<'_> {
     fn abort(&mut self) {}
 }
 
-/// Splits a ring that visits a vertex more than once into simple loops.
 /// Whether a ring visits a vertex twice.
-fn has_repeats(ring: &[VertId]) -> bool {
+fn has_repeats<T: Ord + Copy>(ring: &[T]) -> bool {
     if ring.len() <= 16 {
         return ring
             .iter()
@@ -207,6 +205,7 @@ fn has_repeats(ring: &[VertId]) -> bool {
     sorted.windows(2).any(|w| w[0] == w[1])
 }
 
+/// Splits a ring that visits a vertex more than once into simple loops.
 fn simple_loops(ring: &[VertId]) -> Vec<Vec<VertId>> {
     let mut out = Vec::new();
     let mut stack: Vec<VertId> = Vec::with_capacity(ring.len());
@@ -228,6 +227,23 @@ pub fn mesh_from_indexed(indexed: &IndexedMesh) -> Result<(Mesh, ImportReport), 
     indexed.emit(&mut builder)?;
     let (_, report) = builder.finish();
     Ok((mesh, report))
+}
+
+/// Whether [`mesh_from_indexed`] would make vertex `i` of `indexed` kernel
+/// vertex `i` and polygon `k` face `k`, cleaning, splitting and dropping
+/// nothing: every position finite, every polygon at least 3 distinct
+/// corners that index a vertex. Code that only reads the kernel mesh's
+/// faces can then read the indexed mesh in its place (`graftal info`
+/// searches it for self-intersections while the kernel mesh is built).
+pub fn builds_one_to_one(indexed: &IndexedMesh) -> bool {
+    let count = indexed.positions.len();
+    indexed
+        .positions
+        .iter()
+        .all(|p| p.iter().all(|x| x.is_finite()))
+        && indexed.polygons().all(|ring| {
+            ring.len() >= 3 && ring.iter().all(|&i| (i as usize) < count) && !has_repeats(ring)
+        })
 }
 
 /// Appends an indexed mesh to `mesh`; returns what was made.
@@ -292,6 +308,37 @@ impl Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn one_to_one_needs_simple_polygons_of_finite_vertices() {
+        let square = || {
+            let mut m = IndexedMesh::new();
+            m.positions = vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+            m.push_polygon(&[0, 1, 2, 3]);
+            m.lines.push([0, 2]);
+            m
+        };
+        assert!(builds_one_to_one(&square()));
+        let (mesh, _) = mesh_from_indexed(&square()).unwrap();
+        assert_eq!(
+            mesh.face_verts(FaceId(0)).map(|v| v.0).collect::<Vec<_>>(),
+            [0, 1, 2, 3]
+        );
+        for (broken, corners) in [
+            ("consecutive repeat", vec![0, 1, 1, 2]),
+            ("repeat around the end", vec![0, 1, 2, 0]),
+            ("repeat inside", vec![0, 1, 0, 2, 3]),
+            ("two corners", vec![0, 1]),
+            ("index past the vertices", vec![0, 1, 7]),
+        ] {
+            let mut m = square();
+            m.push_polygon(&corners);
+            assert!(!builds_one_to_one(&m), "{broken}");
+        }
+        let mut m = square();
+        m.positions[2][1] = f64::NAN;
+        assert!(!builds_one_to_one(&m));
+    }
 
     #[test]
     fn round_trip_keeps_topology_lines_and_attributes() {

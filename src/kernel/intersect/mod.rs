@@ -107,6 +107,7 @@ use crate::geom::polygon;
 use crate::geom::predicates::{
     self, orient3d, point_on_segment, shapes_meet, shapes_touch, Plane, Shape,
 };
+use crate::geom::IndexedMesh;
 
 // ---- the narrow phase on bare geometry ----
 
@@ -706,7 +707,26 @@ pub fn self_intersection_search(
     limits: impl FnOnce(usize) -> PairLimits,
 ) -> PairSearch<(FaceId, FaceId)> {
     let build_threads = bvh::threads_for(2 * mesh.face_count());
-    let soup = pairs::mesh_soup(mesh, None, build_threads);
+    face_pairs(pairs::mesh_soup(mesh, None, build_threads), limits)
+}
+
+/// [`self_intersection_search`] of the kernel mesh `mesh` builds, read
+/// straight from it (no kernel mesh is built): face `k` is polygon `k`.
+/// Only meaningful when [`crate::kernel::build::builds_one_to_one`] holds;
+/// `graftal info` then runs it beside the build.
+pub fn indexed_self_intersection_search(
+    mesh: &IndexedMesh,
+    limits: impl FnOnce(usize) -> PairLimits,
+) -> PairSearch<(FaceId, FaceId)> {
+    let build_threads = bvh::threads_for(2 * mesh.polygon_count());
+    face_pairs(pairs::indexed_soup(mesh, build_threads), limits)
+}
+
+/// The face pairs of a soup without wires, within limits.
+fn face_pairs(
+    soup: pairs::Soup,
+    limits: impl FnOnce(usize) -> PairLimits,
+) -> PairSearch<(FaceId, FaceId)> {
     let threads = bvh::threads_for(soup.len());
     let limits = limits(soup.len());
     let found = pairs::search_pairs(soup, threads, limits);

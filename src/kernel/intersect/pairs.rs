@@ -47,6 +47,7 @@ use super::{primitives_intersect, Element, Primitive, WireThickness, NO_VERT};
 use crate::geom::boxes::Box3;
 use crate::geom::polygon;
 use crate::geom::predicates::{orient3d_filtered_at, Plane};
+use crate::geom::IndexedMesh;
 use crate::kernel::ids::{EdgeId, FaceId};
 use crate::kernel::mesh::Mesh;
 
@@ -249,7 +250,29 @@ impl Soup {
 }
 
 /// Faces of a mesh below this count are triangulated on one thread.
-const PARALLEL_FACES: usize = 4096;
+pub(crate) const PARALLEL_FACES: usize = 4096;
+
+/// Where a soup's faces come from: the corner vertex ids of each, in
+/// order, and the positions they index.
+pub(crate) trait FaceRings: Sync {
+    /// Appends the corners of face `f` to `out`.
+    fn ring(&self, f: FaceId, out: &mut Vec<u32>);
+}
+
+impl FaceRings for Mesh {
+    fn ring(&self, f: FaceId, out: &mut Vec<u32>) {
+        out.extend(self.face_verts(f).map(|v| v.0));
+    }
+}
+
+/// An indexed mesh read as the kernel mesh [`crate::kernel::build`] makes
+/// of it when that is one to one: polygon `k` is face `k`, vertex `i` is
+/// vertex `i`.
+impl FaceRings for IndexedMesh {
+    fn ring(&self, f: FaceId, out: &mut Vec<u32>) {
+        out.extend_from_slice(self.polygon(f.index()));
+    }
+}
 
 /// The triangles of every face of `mesh` (its triangulation, as
 /// [`super::push_face`] makes them) and, if `wires` is given, its wire
@@ -260,13 +283,39 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
         points[v.index()] = mesh.position(v);
     }
     let faces: Vec<FaceId> = mesh.face_ids().collect();
-    let (mut flats, mut boxes, mut chunks) = if threads <= 1 || faces.len() < PARALLEL_FACES {
+    let soup = face_soup(mesh, points, &faces, threads);
+    match wires {
+        Some(wires) => with_wires(soup, mesh, wires, threads),
+        None => certified(soup, threads),
+    }
+}
+
+/// [`mesh_soup`] without wires of the kernel mesh an indexed mesh builds
+/// one to one ([`crate::kernel::build::builds_one_to_one`]), without
+/// building it: the same primitives, elements and certificates.
+pub(crate) fn indexed_soup(mesh: &IndexedMesh, threads: usize) -> Soup {
+    let points = (0..mesh.positions.len() as u32)
+        .map(|i| mesh.position(i))
+        .collect();
+    let faces: Vec<FaceId> = (0..mesh.polygon_count() as u32).map(FaceId).collect();
+    certified(face_soup(mesh, points, &faces, threads), threads)
+}
+
+/// The triangles of `faces` (in that order) over `points`, split between
+/// `threads`; no wires, no certificates yet.
+fn face_soup(
+    source: &impl FaceRings,
+    points: Vec<DVec3>,
+    faces: &[FaceId],
+    threads: usize,
+) -> Soup {
+    let (flats, boxes, chunks) = if threads <= 1 || faces.len() < PARALLEL_FACES {
         let mut out = (
             Vec::with_capacity(faces.len() * 2),
             Vec::with_capacity(faces.len() * 2),
             Vec::with_capacity(faces.len()),
         );
-        push_faces(mesh, &points, &faces, &mut out);
+        push_faces(source, &points, faces, &mut out);
         out
     } else {
         // The first share is made in the final arrays, the others are
@@ -279,7 +328,7 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
                 Vec::with_capacity(part.len() * 2),
                 Vec::with_capacity(part.len()),
             );
-            push_faces(mesh, points, part, &mut out);
+            push_faces(source, points, part, &mut out);
             out
         };
         std::thread::scope(|scope| {
@@ -302,6 +351,26 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
             (flats, boxes, chunks)
         })
     };
+    Soup {
+        points,
+        flats,
+        ids: Vec::new(),
+        thickness: Vec::new(),
+        boxes,
+        chunks,
+        fans: Vec::new(),
+    }
+}
+
+/// `soup` with the wire edges of `mesh` appended as segments, certified.
+fn with_wires(soup: Soup, mesh: &Mesh, wires: WireThickness, threads: usize) -> Soup {
+    let Soup {
+        points,
+        mut flats,
+        mut boxes,
+        mut chunks,
+        ..
+    } = soup;
     let mut soup = Soup {
         points,
         flats: Vec::new(),
@@ -311,43 +380,44 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
         chunks: Vec::new(),
         fans: Vec::new(),
     };
-    if let Some(wires) = wires {
-        let first = flats.len();
-        let edges: Vec<EdgeId> = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).collect();
-        let mut thickness = Vec::with_capacity(edges.len());
-        for &e in &edges {
-            let [a, b] = mesh.edge_verts(e);
-            // As `super::edge_item`.
-            let t = wires.of(mesh, e);
-            thickness.push(if t.is_finite() && t > 0.0 { t } else { 0.0 });
-            flats.push(Flat {
-                pt: [a.0, b.0, b.0],
-                len: 2,
-                boundary: 1,
-            });
+    let first = flats.len();
+    let edges: Vec<EdgeId> = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).collect();
+    let mut thickness = Vec::with_capacity(edges.len());
+    for &e in &edges {
+        let [a, b] = mesh.edge_verts(e);
+        // As `super::edge_item`.
+        let t = wires.of(mesh, e);
+        thickness.push(if t.is_finite() && t > 0.0 { t } else { 0.0 });
+        flats.push(Flat {
+            pt: [a.0, b.0, b.0],
+            len: 2,
+            boundary: 1,
+        });
+    }
+    if thickness.iter().any(|&t| t != 0.0) {
+        soup.thickness = vec![0.0; first];
+        soup.thickness.extend(thickness);
+    }
+    if !edges.is_empty() {
+        // The third corner of a segment names no vertex.
+        soup.ids = flats.iter().map(|f| f.pt).collect();
+        for id in &mut soup.ids[first..] {
+            id[2] = NO_VERT;
         }
-        if thickness.iter().any(|&t| t != 0.0) {
-            soup.thickness = vec![0.0; first];
-            soup.thickness.extend(thickness);
-        }
-        if !edges.is_empty() {
-            // The third corner of a segment names no vertex.
-            soup.ids = flats.iter().map(|f| f.pt).collect();
-            for id in &mut soup.ids[first..] {
-                id[2] = NO_VERT;
-            }
-        }
-        soup.flats = flats;
-        for (k, &e) in (first..).zip(&edges) {
-            boxes.push(soup.item_box(k));
-            push_chunks(k..k + 1, Element::Edge(e), |k| soup.bounds(k), &mut chunks);
-        }
-    } else {
-        soup.flats = flats;
+    }
+    soup.flats = flats;
+    for (k, &e) in (first..).zip(&edges) {
+        boxes.push(soup.item_box(k));
+        push_chunks(k..k + 1, Element::Edge(e), |k| soup.bounds(k), &mut chunks);
     }
     soup.boxes = boxes;
     soup.chunks = chunks;
-    // Positions are indexed by vertex id here, as the certificate needs.
+    certified(soup, threads)
+}
+
+/// `soup` with its vertex fans certified (positions are indexed by vertex
+/// id, as the certificate needs).
+fn certified(mut soup: Soup, threads: usize) -> Soup {
     soup.fans = certified_fans(&soup.points, &soup.flats, threads);
     soup
 }
@@ -355,7 +425,7 @@ pub(crate) fn mesh_soup(mesh: &Mesh, wires: Option<WireThickness>, threads: usiz
 /// Appends the triangles of `faces` and their chunks, as
 /// [`super::push_ring`] makes them.
 fn push_faces(
-    mesh: &Mesh,
+    source: &impl FaceRings,
     points: &[DVec3],
     faces: &[FaceId],
     (out, boxes, chunks): &mut (Vec<Flat>, Vec<Box3>, Vec<Chunk>),
@@ -366,10 +436,8 @@ fn push_faces(
     for &f in faces {
         verts.clear();
         ring.clear();
-        for v in mesh.face_verts(f) {
-            verts.push(v.0);
-            ring.push(points[v.index()]);
-        }
+        source.ring(f, &mut verts);
+        ring.extend(verts.iter().map(|&v| points[v as usize]));
         tris.clear();
         polygon::triangulate(&ring, &mut tris);
         let n = ring.len();

@@ -2,7 +2,7 @@ use glam::DVec3;
 use proptest::prelude::*;
 
 use super::*;
-use crate::kernel::ops::create;
+use crate::kernel::ops::{create, transform};
 use crate::kernel::{AttrValue, Domain};
 
 fn p(x: f64, y: f64, z: f64) -> DVec3 {
@@ -1119,6 +1119,67 @@ proptest! {
             let found = pairs::intersecting_pairs(soup, threads);
             prop_assert_eq!(&found, &brute_force(&items));
         }
+    }
+}
+
+// ---- the indexed mesh read as the kernel mesh it builds ----
+
+/// Two overlapping UV spheres (quads and triangles, past the size where
+/// faces are split between threads) and a bumpy sheet through them, as
+/// the indexed mesh a reader would hand over.
+fn crossing_shells() -> crate::geom::IndexedMesh {
+    let mut m = Mesh::new();
+    create::create_uv_sphere(&mut m, 64, 40, 1.0).unwrap();
+    let other = create::create_uv_sphere(&mut m, 48, 30, 0.8).unwrap();
+    transform::translate(&mut m, &other.verts, p(0.9, 0.1, 0.0)).unwrap();
+    let sheet = create::create_grid(&mut m, 20, 20, 3.0, 3.0).unwrap();
+    for &v in &sheet.verts {
+        let q = m.position(v);
+        m.set_position(v, q + p(0.0, 0.0, 0.05 * (3.0 * q.x).sin()));
+    }
+    m.to_indexed()
+}
+
+#[test]
+fn indexed_search_equals_the_search_of_the_built_mesh() {
+    let indexed = crossing_shells();
+    assert!(crate::kernel::build::builds_one_to_one(&indexed));
+    let (built, _) = crate::kernel::build::mesh_from_indexed(&indexed).unwrap();
+    assert!(built.face_count() > pairs::PARALLEL_FACES);
+    let limits = PairLimits::for_items;
+    let expect = self_intersection_search(&built, limits);
+    assert!(expect.count > 100 && expect.complete, "{expect:?}");
+    assert_eq!(indexed_self_intersection_search(&indexed, limits), expect);
+    // Under a test budget too small to finish, both stop alike.
+    let tight = |_| PairLimits {
+        keep: 10,
+        max_tests: 5_000,
+    };
+    let stopped = self_intersection_search(&built, tight);
+    assert!(!stopped.complete);
+    assert_eq!(indexed_self_intersection_search(&indexed, tight), stopped);
+    for threads in 1..=3 {
+        let soup = pairs::indexed_soup(&indexed, threads);
+        assert_eq!(soup.certified_fans(), certified(&built));
+        assert_eq!(
+            pairs::intersecting_pairs(soup, threads),
+            pairs::intersecting_pairs(pairs::mesh_soup(&built, None, threads), threads)
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn indexed_pairs_equal_the_built_mesh_pairs(m in bumpy_grid_strategy()) {
+        let indexed = m.to_indexed();
+        prop_assert!(crate::kernel::build::builds_one_to_one(&indexed));
+        let (built, _) = crate::kernel::build::mesh_from_indexed(&indexed).unwrap();
+        prop_assert_eq!(
+            indexed_self_intersection_search(&indexed, PairLimits::for_items),
+            self_intersection_search(&built, PairLimits::for_items)
+        );
     }
 }
 
