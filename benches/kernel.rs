@@ -1,6 +1,7 @@
 //! Kernel and writer benchmarks (issue 2 targets, on 2 cores):
 //! build a 1000×1000 grid; extrude all its faces; merge 1M points by
-//! distance (≤ 300 ms); triangulate 100k quads and 10k non-convex
+//! distance (≤ 300 ms); weld the issue-17 soup of 998,784 corners (an
+//! indexed mesh, before any kernel mesh); triangulate 100k quads and 10k non-convex
 //! 12-gons; write a 1M-triangle GLB (≤ 300 ms).
 //!
 //!     cargo bench --bench kernel
@@ -12,6 +13,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use glam::DVec3;
 
+use graftal::geom::indexed::IndexedMesh;
 use graftal::io::{self, MeshFormat};
 use graftal::kernel::ops::{create, extrude, faces, merge};
 use graftal::kernel::{Mesh, VertId};
@@ -90,6 +92,53 @@ fn bench_merge(c: &mut Criterion) {
     g.finish();
 }
 
+/// The issue-17 soup: a `cells`² quad grid of spacing 0.01 exploded into
+/// triangles, every corner its own vertex jittered by U(±1e-6) (a
+/// counter-based hash, so the input is the same on every run).
+fn jittered_soup(cells: u32) -> IndexedMesh {
+    let jitter = |k: u64| {
+        let mut z = k
+            .wrapping_add(0x9E37_79B9_7F4A_7C15)
+            .wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 31)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * 1e-6
+    };
+    let mut soup = IndexedMesh::new();
+    let corner = |soup: &mut IndexedMesh, i: u32, j: u32| {
+        let k = soup.positions.len() as u64 * 3;
+        soup.positions.push([
+            i as f64 * 0.01 + jitter(k),
+            j as f64 * 0.01 + jitter(k + 1),
+            jitter(k + 2),
+        ]);
+        soup.positions.len() as u32 - 1
+    };
+    for j in 0..cells {
+        for i in 0..cells {
+            for tri in [
+                [(i, j), (i + 1, j), (i + 1, j + 1)],
+                [(i, j), (i + 1, j + 1), (i, j + 1)],
+            ] {
+                let ids = tri.map(|(a, b)| corner(&mut soup, a, b));
+                soup.push_polygon(&ids);
+            }
+        }
+    }
+    soup
+}
+
+fn bench_weld(c: &mut Criterion) {
+    let mut g = c.benchmark_group("weld_indexed");
+    g.sample_size(10);
+    for cells in [41u32, 408] {
+        let soup = jittered_soup(cells);
+        g.bench_function(format!("soup_{}_vertices", soup.positions.len()), |b| {
+            b.iter(|| black_box(soup.welded(1e-4)))
+        });
+    }
+    g.finish();
+}
+
 fn star_12gons(count: usize) -> Mesh {
     let mut mesh = Mesh::new();
     for k in 0..count {
@@ -154,6 +203,7 @@ criterion_group!(
     bench_grid,
     bench_extrude,
     bench_merge,
+    bench_weld,
     bench_triangulate,
     bench_glb
 );

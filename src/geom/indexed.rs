@@ -8,11 +8,9 @@
 
 use std::collections::HashMap;
 
-use rustc_hash::FxHashMap;
-
 use glam::DVec3;
 
-use super::cells::Cells;
+use super::cells::{CellLists, Cells, NONE};
 use super::material::Material;
 use super::polygon;
 
@@ -558,24 +556,22 @@ impl IndexedMesh {
         let mut map: Vec<u32> = Vec::with_capacity(n);
         let mut kept: Vec<u32> = Vec::new();
         if distance > 0.0 && distance.is_finite() {
-            // Each cell (geom::cells: 8 searched per point) heads a list,
-            // threaded through `next`, of the kept vertices in it, newest
-            // first.
+            // Each cell (geom::cells: 8 searched per point) lists the kept
+            // vertices in it, newest first. How many cells the kept
+            // vertices fill is unknown, so the table grows.
             let cells = Cells::for_distance(distance);
-            let mut heads: FxHashMap<[i64; 3], u32> = FxHashMap::default();
-            heads.reserve(n);
-            let mut next: Vec<u32> = Vec::with_capacity(n);
+            let mut lists = CellLists::with_capacity(n, 0);
             kept.reserve(n);
             let d2 = distance * distance;
             for (i, p) in self.positions.iter().enumerate() {
                 let point = DVec3::from_array(*p);
                 let (lo, hi) = cells.around(*p);
-                let mut found = u32::MAX;
+                let mut found = NONE;
                 for cx in lo[0]..=hi[0] {
                     for cy in lo[1]..=hi[1] {
                         for cz in lo[2]..=hi[2] {
-                            let mut j = heads.get(&[cx, cy, cz]).copied().unwrap_or(u32::MAX);
-                            while j != u32::MAX {
+                            let mut j = lists.head([cx, cy, cz]);
+                            while j != NONE {
                                 // Lists run newest first: every later entry is lower.
                                 if j < found {
                                     let q = DVec3::from_array(
@@ -585,20 +581,16 @@ impl IndexedMesh {
                                         found = j;
                                     }
                                 }
-                                j = next[j as usize];
+                                j = lists.next(j);
                             }
                         }
                     }
                 }
-                let index = if found != u32::MAX {
+                let index = if found != NONE {
                     found
                 } else {
-                    let j = kept.len() as u32;
                     kept.push(i as u32);
-                    let head = heads.entry(cells.of(*p)).or_insert(u32::MAX);
-                    next.push(*head);
-                    *head = j;
-                    j
+                    lists.push(cells.of(*p))
                 };
                 map.push(index);
             }

@@ -229,21 +229,29 @@ pub fn mesh_from_indexed(indexed: &IndexedMesh) -> Result<(Mesh, ImportReport), 
     Ok((mesh, report))
 }
 
-/// Whether [`mesh_from_indexed`] would make vertex `i` of `indexed` kernel
-/// vertex `i` and polygon `k` face `k`, cleaning, splitting and dropping
-/// nothing: every position finite, every polygon at least 3 distinct
-/// corners that index a vertex. Code that only reads the kernel mesh's
-/// faces can then read the indexed mesh in its place (`graftal info`
-/// searches it for self-intersections while the kernel mesh is built).
+/// Whether [`mesh_from_indexed`] would succeed and make vertex `i` of
+/// `indexed` kernel vertex `i` and polygon `k` face `k`, cleaning,
+/// splitting and dropping nothing: every position finite, every scalar
+/// column full, every polygon at least 3 distinct corners that index a
+/// vertex, every line's ends in range. Code that only reads the kernel
+/// mesh can then read the indexed mesh in its place (`graftal info`
+/// measures it and searches it for self-intersections without building
+/// the kernel mesh: [`report_of_indexed`](super::measure::report_of_indexed)).
 pub fn builds_one_to_one(indexed: &IndexedMesh) -> bool {
     let count = indexed.positions.len();
+    let in_range = |i: &u32| (*i as usize) < count;
     indexed
         .positions
         .iter()
         .all(|p| p.iter().all(|x| x.is_finite()))
-        && indexed.polygons().all(|ring| {
-            ring.len() >= 3 && ring.iter().all(|&i| (i as usize) < count) && !has_repeats(ring)
-        })
+        && indexed
+            .vertex_scalars
+            .iter()
+            .all(|(_, values)| values.len() == count)
+        && indexed
+            .polygons()
+            .all(|ring| ring.len() >= 3 && ring.iter().all(in_range) && !has_repeats(ring))
+        && indexed.lines.iter().flatten().all(in_range)
 }
 
 /// Appends an indexed mesh to `mesh`; returns what was made.
@@ -338,6 +346,16 @@ mod tests {
         let mut m = square();
         m.positions[2][1] = f64::NAN;
         assert!(!builds_one_to_one(&m));
+        let mut m = square();
+        m.lines.push([3, 4]);
+        assert!(!builds_one_to_one(&m), "line past the vertices");
+        assert!(mesh_from_indexed(&m).is_err());
+        let mut m = square();
+        m.vertex_scalars.push(("radius".into(), vec![1.0; 3]));
+        assert!(!builds_one_to_one(&m), "a scalar short of a vertex");
+        assert!(mesh_from_indexed(&m).is_err());
+        m.vertex_scalars[0].1.push(1.0);
+        assert!(builds_one_to_one(&m));
     }
 
     #[test]

@@ -102,7 +102,7 @@ pub use pairs::{PairLimits, PairSearch};
 
 use super::ids::{Domain, EdgeId, FaceId, VertId};
 use super::mesh::Mesh;
-use crate::geom::cells::Cells;
+use crate::geom::cells::{CellLists, Cells, NONE};
 use crate::geom::polygon;
 use crate::geom::predicates::{
     self, orient3d, point_on_segment, shapes_meet, shapes_touch, Plane, Shape,
@@ -792,17 +792,13 @@ pub fn count_close_points(points: &[DVec3], tolerance: f64, max_tests: u64) -> P
     if !(tolerance > 0.0 && tolerance.is_finite()) {
         return out;
     }
-    // Each cell (geom::cells: 8 searched per point) heads a list of the
-    // distinct points in it, threaded through `next` in descending index
-    // order, so a walk stops at the first index not above its own.
+    // Each cell (geom::cells: 8 searched per point) lists the distinct
+    // points in it in descending index order, so a walk stops at the
+    // first index not above its own.
     let cells = Cells::for_distance(tolerance);
-    let mut heads: FxHashMap<[i64; 3], u32> = FxHashMap::default();
-    heads.reserve(distinct.len());
-    let mut next: Vec<u32> = Vec::with_capacity(distinct.len());
-    for (index, (p, _)) in distinct.iter().enumerate() {
-        let head = heads.entry(cells.of(p.to_array())).or_insert(u32::MAX);
-        next.push(*head);
-        *head = index as u32;
+    let mut lists = CellLists::with_capacity(distinct.len(), distinct.len());
+    for (p, _) in &distinct {
+        lists.push(cells.of(p.to_array()));
     }
     let tol2 = tolerance * tolerance;
     let mut budget = max_tests;
@@ -811,8 +807,8 @@ pub fn count_close_points(points: &[DVec3], tolerance: f64, max_tests: u64) -> P
         for cx in lo[0]..=hi[0] {
             for cy in lo[1]..=hi[1] {
                 for cz in lo[2]..=hi[2] {
-                    let mut other = heads.get(&[cx, cy, cz]).copied().unwrap_or(u32::MAX);
-                    while other != u32::MAX && other as usize > index {
+                    let mut other = lists.head([cx, cy, cz]);
+                    while other != NONE && other as usize > index {
                         let Some(left) = budget.checked_sub(1) else {
                             out.complete = false;
                             return out;
@@ -822,7 +818,7 @@ pub fn count_close_points(points: &[DVec3], tolerance: f64, max_tests: u64) -> P
                         if p.distance_squared(q) <= tol2 {
                             out.count = out.count.saturating_add(weight.saturating_mul(w));
                         }
-                        other = next[other as usize];
+                        other = lists.next(other);
                     }
                 }
             }

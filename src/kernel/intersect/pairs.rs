@@ -739,14 +739,30 @@ impl Tree {
         node.first as usize..(node.first + node.count) as usize
     }
 
-    /// Tests the item pairs with overlapping boxes of chunk slots `ca` and
-    /// `cb` (if of different elements, with overlapping boxes).
-    #[inline]
-    fn chunk_pair(&self, ca: usize, cb: usize, found: &mut Found) {
+    /// Tests chunk slots `ca` and `cb`: nothing for chunks of one element;
+    /// else one test from the budget (`false` once it is spent) and, if
+    /// their boxes overlap, their items ([`Tree::overlapping_chunks`]).
+    /// Kept small enough to inline into the leaf loops: most chunk pairs
+    /// end at the box test.
+    #[inline(always)]
+    fn chunk_pair(&self, ca: usize, cb: usize, found: &mut Found) -> bool {
         let (a, b) = (&self.chunks[ca], &self.chunks[cb]);
-        if a.owner == b.owner || !found.spend() || !a.bounds.overlaps(&b.bounds) {
-            return;
+        if a.owner == b.owner {
+            return true;
         }
+        if !found.spend() {
+            return false;
+        }
+        if a.bounds.overlaps(&b.bounds) {
+            self.overlapping_chunks(a, b, found);
+        }
+        true
+    }
+
+    /// Tests the item pairs with overlapping boxes of two chunks of
+    /// different elements whose boxes overlap.
+    #[inline(never)]
+    fn overlapping_chunks(&self, a: &Chunk, b: &Chunk, found: &mut Found) {
         let key = (a.owner.min(b.owner), a.owner.max(b.owner));
         let shared = a.shared || b.shared;
         // Skip pairs already found (only elements of several chunks repeat).
@@ -825,17 +841,22 @@ impl Tree {
                 continue;
             }
             let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+            // A spent budget ends the task (`found.exhausted` is set).
             if a == b {
                 let chunks = self.leaf(na);
                 for ca in chunks.clone() {
                     for cb in ca + 1..chunks.end {
-                        self.chunk_pair(ca, cb, found);
+                        if !self.chunk_pair(ca, cb, found) {
+                            return stack.clear();
+                        }
                     }
                 }
             } else {
                 for ca in self.leaf(na) {
                     for cb in self.leaf(nb) {
-                        self.chunk_pair(ca, cb, found);
+                        if !self.chunk_pair(ca, cb, found) {
+                            return stack.clear();
+                        }
                     }
                 }
             }
