@@ -16,8 +16,8 @@
 //! edge, say) are skipped silently. Inputs are processed in ascending id
 //! order, so results do not depend on the order given.
 
-use super::side_table::{distinct_ids, SideTable};
-use super::{canonical, OpError, Selection};
+use super::side_table::SideTable;
+use super::{canonical, into_canonical, OpError, Selection};
 use crate::geom::UnionFind;
 use crate::kernel::ids::{EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
@@ -112,12 +112,12 @@ pub(crate) fn duplicate_mapped(
     for &f in &faces {
         edges.extend(mesh.face_edges(f));
     }
-    let edges = distinct_ids(edges, mesh.edge_capacity());
+    let edges = into_canonical(edges);
     let mut verts = sel_verts;
     for &e in &edges {
         verts.extend(mesh.edge_verts(e));
     }
-    let verts = distinct_ids(verts, mesh.vert_capacity());
+    let verts = into_canonical(verts);
     let corners = faces.iter().map(|&f| mesh.face_len(f)).sum();
     mesh.reserve(verts.len(), edges.len(), corners, faces.len());
 

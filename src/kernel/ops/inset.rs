@@ -35,7 +35,7 @@ use rustc_hash::FxHashSet;
 
 use super::side_table::SideTable;
 
-use super::{canonical, OpError, Selection};
+use super::{canonical, into_canonical, OpError, Selection};
 use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
 
 /// Rejects non-finite parameters and a negative thickness (an outset would
@@ -262,27 +262,22 @@ pub fn inset_region(
     for &f in &faces {
         face_normal.insert(f.index(), mesh.compute_face_normal(f));
     }
-    let region_edges = canonical(
-        &faces
-            .iter()
-            .flat_map(|&f| mesh.face_edges(f))
-            .collect::<Vec<_>>(),
-    );
-    let region_verts = canonical(
-        &faces
-            .iter()
-            .flat_map(|&f| mesh.face_verts(f))
-            .collect::<Vec<_>>(),
-    );
+    // Distinct and ascending, by slot marks when the region is a good part
+    // of the mesh (each vertex is named about four times).
+    let region_edges = into_canonical(faces.iter().flat_map(|&f| mesh.face_edges(f)).collect());
+    let region_verts = into_canonical(faces.iter().flat_map(|&f| mesh.face_verts(f)).collect());
 
-    // Per region vertex: its normal, the boundary edges (direction, inward
-    // direction) arriving at and leaving it, and its mitre rate.
-    #[derive(Default)]
+    // Per region vertex its normal and mitre rate; the boundary edges
+    // (direction, inward direction) arriving at and leaving it only for
+    // the vertices on the outline, which a big region has few of.
     struct Corner {
         normal: DVec3,
+        rate: DVec3,
+    }
+    #[derive(Default)]
+    struct Outline {
         arriving: Vec<(DVec3, DVec3)>,
         leaving: Vec<(DVec3, DVec3)>,
-        rate: DVec3,
     }
     let mut corners: SideTable<Corner> = SideTable::new(region_verts.len(), mesh.vert_capacity());
     for &v in &region_verts {
@@ -291,11 +286,13 @@ pub fn inset_region(
             .filter_map(|f| face_normal.get(f.index()).copied())
             .sum::<DVec3>()
             .normalize_or_zero();
-        let corner = Corner {
-            normal,
-            ..Corner::default()
-        };
-        corners.insert(v.index(), corner);
+        corners.insert(
+            v.index(),
+            Corner {
+                normal,
+                rate: DVec3::ZERO,
+            },
+        );
     }
 
     // Boundary edges, run x → y as their one region face runs them.
@@ -307,38 +304,48 @@ pub fn inset_region(
     let mut boundary: Vec<Boundary> = Vec::new();
     let mut boundary_edge: FxHashSet<EdgeId> = FxHashSet::default();
     for &e in &region_edges {
-        let loops: Vec<_> = mesh
+        let mut region_loops = mesh
             .edge_loops(e)
-            .filter(|&l| face_normal.contains(mesh.lp(l).face.index()))
-            .collect();
-        if let [only] = loops[..] {
+            .filter(|&l| face_normal.contains(mesh.lp(l).face.index()));
+        if let (Some(only), None) = (region_loops.next(), region_loops.next()) {
             let x = mesh.lp(only).vert;
             let y = mesh.edge_other_vert(e, x);
-            let face = mesh.lp(only).face;
-            let u = (mesh.position(y) - mesh.position(x)).normalize_or_zero();
-            let m = face_normal
-                .get(face.index())
-                .expect("a region face")
-                .cross(u);
-            if let Some(c) = corners.get_mut(x.index()) {
-                c.leaving.push((u, m));
-            }
-            if let Some(c) = corners.get_mut(y.index()) {
-                c.arriving.push((u, m));
-            }
-            boundary.push(Boundary { x, y, face });
+            boundary.push(Boundary {
+                x,
+                y,
+                face: mesh.lp(only).face,
+            });
             boundary_edge.insert(e);
         }
     }
-    let on_outline = |c: &Corner| !(c.arriving.is_empty() && c.leaving.is_empty());
-    for &v in &region_verts {
-        let c = corners.get_mut(v.index()).expect("a region vertex");
-        if !on_outline(c) {
-            continue;
+    let mut outline: SideTable<Outline> = SideTable::new(2 * boundary.len(), mesh.vert_capacity());
+    for b in &boundary {
+        let u = (mesh.position(b.y) - mesh.position(b.x)).normalize_or_zero();
+        let m = face_normal
+            .get(b.face.index())
+            .expect("a region face")
+            .cross(u);
+        for (v, leaves) in [(b.x, true), (b.y, false)] {
+            if !outline.contains(v.index()) {
+                outline.insert(v.index(), Outline::default());
+            }
+            let o = outline.get_mut(v.index()).expect("just filed");
+            if leaves {
+                o.leaving.push((u, m));
+            } else {
+                o.arriving.push((u, m));
+            }
         }
+    }
+    let is_boundary = |v: VertId| outline.contains(v.index());
+    for &v in &region_verts {
+        let Some(o) = outline.get(v.index()) else {
+            continue;
+        };
+        let c = corners.get_mut(v.index()).expect("a region vertex");
         let n = c.normal;
         let flat = |d: DVec3| (d - n * d.dot(n)).normalize_or_zero();
-        c.rate = match (&c.arriving[..], &c.leaving[..]) {
+        c.rate = match (&o.arriving[..], &o.leaving[..]) {
             ([(u_in, m_in)], [(u_out, m_out)]) => {
                 mitre(flat(*m_in), flat(*m_out), flat(*u_in), flat(*u_out))
             }
@@ -369,7 +376,6 @@ pub fn inset_region(
         })
         .collect();
     check_targets(&targets)?;
-    let is_boundary = |v: VertId| corners.get(v.index()).is_some_and(on_outline);
 
     let mut result = Selection::new();
     let mut inner_of: SideTable<VertId> = SideTable::new(region_verts.len(), mesh.vert_capacity());

@@ -24,7 +24,7 @@
 use thiserror::Error;
 
 use super::euler::KernelError;
-use super::ids::{EdgeId, FaceId, VertId};
+use super::ids::{EdgeId, FaceId, SlotId, VertId};
 
 pub mod coincide;
 pub mod create;
@@ -88,12 +88,35 @@ impl Selection {
 
 /// Sorts and dedups ids, in one linear pass when they are already strictly
 /// ascending (what most operators produce: new ids come in slot order).
-fn sort_ids<T: Ord + Copy>(ids: &mut Vec<T>) {
+/// Otherwise ids that are dense among their slots (the largest below 64
+/// per id: a region's corner lists, an operator's results) are marked in a
+/// bitmap of the slots and read back in order, one bit per slot and no
+/// comparison sort; sparse lists are sorted.
+pub(crate) fn sort_ids<T: SlotId>(ids: &mut Vec<T>) {
     if ids.windows(2).all(|w| w[0] < w[1]) {
         return;
     }
-    ids.sort_unstable();
-    ids.dedup();
+    let Some(max) = ids.iter().map(|id| id.slot()).max() else {
+        return;
+    };
+    if ids.len() < 64 || max / 64 > ids.len() {
+        ids.sort_unstable();
+        ids.dedup();
+        return;
+    }
+    let mut bits = vec![0u64; max / 64 + 1];
+    for id in ids.iter() {
+        let slot = id.slot();
+        bits[slot / 64] |= 1 << (slot % 64);
+    }
+    ids.clear();
+    for (w, &word) in bits.iter().enumerate() {
+        let mut word = word;
+        while word != 0 {
+            ids.push(T::at_slot(w * 64 + word.trailing_zeros() as usize));
+            word &= word - 1;
+        }
+    }
 }
 
 /// Why a high-level operator failed.
@@ -116,8 +139,38 @@ impl OpError {
 
 /// Sorted, deduplicated copy of an id list: operators iterate inputs in id
 /// order so their results do not depend on the order the caller gave.
-pub(crate) fn canonical<T: Ord + Copy>(ids: &[T]) -> Vec<T> {
-    let mut v = ids.to_vec();
-    sort_ids(&mut v);
-    v
+pub(crate) fn canonical<T: SlotId>(ids: &[T]) -> Vec<T> {
+    into_canonical(ids.to_vec())
+}
+
+/// `ids` sorted and deduplicated in place (see [`sort_ids`]).
+pub(crate) fn into_canonical<T: SlotId>(mut ids: Vec<T>) -> Vec<T> {
+    sort_ids(&mut ids);
+    ids
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sort_ids_marked_or_sorted_agree() {
+        let ids: Vec<VertId> = [9, 3, 3, 0, 9, 7, 3].map(VertId::from_index).to_vec();
+        let want: Vec<VertId> = [0, 3, 7, 9].map(VertId::from_index).to_vec();
+        assert_eq!(into_canonical(ids), want);
+        assert_eq!(into_canonical(want.clone()), want);
+        assert!(into_canonical(Vec::<VertId>::new()).is_empty());
+        // Long lists: dense ones take the bitmap, sparse ones the sort;
+        // both give the ascending distinct ids.
+        for spread in [1usize, 7, 63, 64, 65, 1000] {
+            let ids: Vec<FaceId> = (0..500usize)
+                .map(|i| FaceId::from_index((i * 7919 % 500) * spread + i % 3))
+                .chain((0..100).map(|i| FaceId::from_index(i * spread)))
+                .collect();
+            let mut want = ids.clone();
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(into_canonical(ids), want, "spread {spread}");
+        }
+    }
 }

@@ -17,9 +17,8 @@
 //! Membership tests binary-search the sorted input, so a call costs
 //! O(k log k) in the size k of what it touches, never the size of the mesh.
 
-use super::side_table::distinct_ids;
-use super::{canonical, Selection};
-use crate::kernel::ids::{EdgeId, FaceId, VertId};
+use super::{canonical, into_canonical, Selection};
+use crate::kernel::ids::{EdgeId, FaceId, SlotId, VertId};
 use crate::kernel::mesh::Mesh;
 
 /// Which neighbours a region grows to or shrinks from: faces sharing an edge,
@@ -80,8 +79,8 @@ pub fn select_from_faces(mesh: &Mesh, faces: &[FaceId]) -> Selection {
         verts.extend(mesh.face_verts(f));
         edges.extend(mesh.face_edges(f));
     }
-    let verts = distinct_ids(verts, mesh.vert_capacity());
-    let edges = distinct_ids(edges, mesh.edge_capacity());
+    let verts = into_canonical(verts);
+    let edges = into_canonical(edges);
     Selection::from_parts(verts, edges, faces)
 }
 
@@ -136,7 +135,7 @@ pub fn region_reduce(mesh: &Mesh, faces: &[FaceId], by: Adjacency) -> Vec<FaceId
 }
 
 /// Sorted, deduplicated live ids.
-fn live<T: Ord + Copy>(ids: &[T], alive: impl Fn(T) -> bool) -> Vec<T> {
+fn live<T: SlotId>(ids: &[T], alive: impl Fn(T) -> bool) -> Vec<T> {
     let mut out = canonical(ids);
     out.retain(|&id| alive(id));
     out

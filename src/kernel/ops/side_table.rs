@@ -9,8 +9,6 @@
 
 use rustc_hash::FxHashMap;
 
-use crate::kernel::ids::SlotId;
-
 /// Values keyed by an element's slot index.
 pub(crate) enum SideTable<V> {
     Dense(Vec<Option<V>>),
@@ -59,35 +57,6 @@ impl<V> SideTable<V> {
     }
 }
 
-/// The distinct ids of `ids` (repeats allowed), ascending, among
-/// `capacity` slots: by marking slots when the list is a good part of them
-/// (one pass, no sort: a face list's corners name each vertex about four
-/// times), else by sorting. Same rule as [`SideTable::new`].
-pub(crate) fn distinct_ids<T: SlotId>(mut ids: Vec<T>, capacity: usize) -> Vec<T> {
-    // Ids past the slots (a caller checks them afterwards) take the sort,
-    // as does a list already canonical (which `sort_ids` leaves alone).
-    let marking = capacity <= ids.len().saturating_mul(8)
-        && ids.iter().all(|id| id.slot() < capacity)
-        && !ids.windows(2).all(|w| w[0] < w[1]);
-    if marking {
-        let mut marked = vec![false; capacity];
-        for &id in &ids {
-            marked[id.slot()] = true;
-        }
-        ids.clear();
-        ids.extend(
-            marked
-                .iter()
-                .enumerate()
-                .filter(|(_, &m)| m)
-                .map(|(i, _)| T::at_slot(i)),
-        );
-    } else {
-        super::sort_ids(&mut ids);
-    }
-    ids
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -105,23 +74,5 @@ mod tests {
             assert!(!t.contains(4));
             assert_eq!(t.get(capacity + 5), None);
         }
-    }
-
-    #[test]
-    fn distinct_ids_marked_or_sorted_agree() {
-        use crate::kernel::VertId;
-        let ids: Vec<VertId> = [9, 3, 3, 0, 9, 7, 3].map(VertId::from_index).to_vec();
-        let want: Vec<VertId> = [0, 3, 7, 9].map(VertId::from_index).to_vec();
-        // 7 ids among 10 slots are marked; among 1000, sorted.
-        assert_eq!(distinct_ids(ids.clone(), 10), want);
-        assert_eq!(distinct_ids(ids, 1000), want);
-        assert_eq!(distinct_ids(want.clone(), 10), want);
-        assert!(distinct_ids(Vec::<VertId>::new(), 0).is_empty());
-        // An id past the slots is kept (for the caller to refuse), not a panic.
-        let past: Vec<VertId> = [12, 3, 12].map(VertId::from_index).to_vec();
-        assert_eq!(
-            distinct_ids(past, 10),
-            [3, 12].map(VertId::from_index).to_vec()
-        );
     }
 }

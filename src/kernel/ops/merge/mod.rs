@@ -55,8 +55,7 @@ use rustc_hash::FxHashMap;
 use super::delete::duplicate_mapped;
 use crate::geom::UnionFind;
 
-use super::side_table::distinct_ids;
-use super::{canonical, OpError, Selection};
+use super::{canonical, into_canonical, OpError, Selection};
 use crate::kernel::attrs::AttrValue;
 use crate::kernel::ids::{Domain, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
@@ -136,7 +135,7 @@ pub fn mirror(
         mesh.check_face(f)?;
         touched.extend(mesh.face_verts(f));
     }
-    for v in distinct_ids(touched, mesh.vert_capacity()) {
+    for v in into_canonical(touched) {
         mesh.check_vert(v)?;
         if !reflect(mesh.position(v)).is_finite() {
             return Err(OpError::parameter(
