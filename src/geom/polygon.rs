@@ -55,6 +55,44 @@ pub fn unit_normal(points: &[DVec3]) -> Option<DVec3> {
     frame.unit_normal(points)
 }
 
+/// [`unit_normal`] of a ring of fixed size: the same arithmetic in the same
+/// order (so the same bits), unrolled. Kernel operators make millions of
+/// triangles and quads, and each gets its normal when it is made.
+#[inline]
+pub fn unit_normal_of<const N: usize>(points: &[DVec3; N]) -> Option<DVec3> {
+    if N < 3 {
+        return unit_normal(points);
+    }
+    let (mut lo, mut hi) = (points[0], points[0]);
+    let mut finite = true;
+    for p in points {
+        finite &= p.is_finite();
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    if !finite {
+        return None;
+    }
+    let half = (hi * 0.5 - lo * 0.5).max_element();
+    if !(1e-100..=1e100).contains(&half) {
+        // Extreme extents take the rescaled frame.
+        return unit_normal(points);
+    }
+    let centre = lo * 0.5 + hi * 0.5;
+    let origin = points[0] - centre;
+    let mut sum = DVec3::ZERO;
+    let mut prev = (points[1] - centre) - origin;
+    for p in &points[2..] {
+        let cur = (*p - centre) - origin;
+        sum += prev.cross(cur);
+        prev = cur;
+    }
+    let len = sum.length();
+    let unit = 2.0 * half;
+    let threshold = DEGENERATE_PER_VERTEX * N as f64 * unit * unit;
+    (len.is_finite() && len > threshold).then(|| sum / len)
+}
+
 /// Magnitude of the vector area (`|newell_normal| / 2`); zero for degenerate rings.
 pub fn area(points: &[DVec3]) -> f64 {
     match Frame::new(points) {
@@ -531,6 +569,39 @@ mod tests {
         let mut out = Vec::new();
         triangulate(points, &mut out);
         out
+    }
+
+    #[test]
+    fn fixed_size_normals_are_the_same_bits() {
+        let bits = |n: Option<DVec3>| n.map(|v| v.to_array().map(f64::to_bits));
+        let mut state = 7u64;
+        let mut unit = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let scales = [1.0, 1e-120, 1e120, 1e-3, 1e5, 0.0];
+        for i in 0..20_000 {
+            let scale = scales[i % scales.len()];
+            let offset = DVec3::splat(if i % 3 == 0 { 1e4 } else { 0.0 });
+            let mut p: Vec<DVec3> = (0..4)
+                .map(|_| DVec3::new(unit(), unit(), unit() * 0.1) * scale + offset)
+                .collect();
+            match i % 11 {
+                // Collinear, repeated and non-finite corners.
+                1 => p[2] = p[0] * 0.5 + p[1] * 0.5,
+                2 => p[3] = p[1],
+                3 => p[1].y = f64::NAN,
+                4 => p[2].z = f64::INFINITY,
+                5 => p[0] = DVec3::new(-0.0, 0.0, -0.0),
+                _ => {}
+            }
+            let tri: [DVec3; 3] = [p[0], p[1], p[2]];
+            let quad: [DVec3; 4] = [p[0], p[1], p[2], p[3]];
+            assert_eq!(bits(unit_normal_of(&tri)), bits(unit_normal(&tri)), "{i}");
+            assert_eq!(bits(unit_normal_of(&quad)), bits(unit_normal(&quad)), "{i}");
+        }
     }
 
     /// Checks count, index range, and that each corner index appears in the triangle set.

@@ -218,18 +218,32 @@ impl Mesh {
     /// Unit Newell normal from current positions; zero when degenerate.
     pub fn compute_face_normal(&self, f: FaceId) -> DVec3 {
         // Every Euler operator that makes or reshapes a face calls this:
-        // small faces (nearly all) gather their corners on the stack.
+        // triangles and quads (nearly all) take the unrolled computation,
+        // other small faces gather their corners on the stack.
         const SMALL: usize = 8;
-        let normal = if self.face(f).len as usize <= SMALL {
-            let mut points = [DVec3::ZERO; SMALL];
-            let mut n = 0;
-            for v in self.face_verts(f) {
-                points[n] = self.position(v);
-                n += 1;
+        let face = self.face(f);
+        let corner = |l: LoopId| self.position(self.lp(l).vert);
+        let normal = match face.len {
+            3 => {
+                let (a, b) = (face.first_loop, self.lp(face.first_loop).next);
+                let c = self.lp(b).next;
+                polygon::unit_normal_of(&[corner(a), corner(b), corner(c)])
             }
-            polygon::unit_normal(&points[..n])
-        } else {
-            polygon::unit_normal(&self.face_positions(f))
+            4 => {
+                let (a, b) = (face.first_loop, self.lp(face.first_loop).next);
+                let (c, d) = (self.lp(b).next, self.lp(self.lp(b).next).next);
+                polygon::unit_normal_of(&[corner(a), corner(b), corner(c), corner(d)])
+            }
+            len if len as usize <= SMALL => {
+                let mut points = [DVec3::ZERO; SMALL];
+                let mut n = 0;
+                for v in self.face_verts(f) {
+                    points[n] = self.position(v);
+                    n += 1;
+                }
+                polygon::unit_normal(&points[..n])
+            }
+            _ => polygon::unit_normal(&self.face_positions(f)),
         };
         normal.unwrap_or(DVec3::ZERO)
     }

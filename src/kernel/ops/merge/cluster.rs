@@ -68,18 +68,17 @@ pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> 
 /// memory; hashing a million points into cells and probing 13 neighbours
 /// each was measured about twice as slow.
 pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
-    let cells: Vec<[i64; 3]> = points
-        .iter()
-        .map(|p| {
-            [
-                cell_coordinate(p.x, distance),
-                cell_coordinate(p.y, distance),
-                cell_coordinate(p.z, distance),
-            ]
-        })
-        .collect();
+    // Cell coordinates are recomputed where needed rather than stored: a
+    // stored copy is 24 bytes a point of memory touched for the first time.
+    let cell = |p: &DVec3| {
+        [
+            cell_coordinate(p.x, distance),
+            cell_coordinate(p.y, distance),
+            cell_coordinate(p.z, distance),
+        ]
+    };
     let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
-    for c in &cells {
+    for c in points.iter().map(cell) {
         for axis in 0..3 {
             low[axis] = low[axis].min(c[axis]);
             high[axis] = high[axis].max(c[axis]);
@@ -96,14 +95,14 @@ pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
     if bits.iter().sum::<u32>() <= 64 {
         // Fast path: the cell packed into one u64 (x | y | z).
         let (shift_y, shift_x) = (bits[2], bits[1] + bits[2]);
-        let keys: Vec<u64> = cells
+        let keys: Vec<u64> = points
             .iter()
-            .map(|c| {
+            .map(|p| {
+                let c = cell(p);
                 let field = |axis: usize| (c[axis] - low[axis] + 1) as u64;
                 field(0) << shift_x | field(1) << shift_y | field(2)
             })
             .collect();
-        drop(cells);
         let (cell_keys, order) = radix_sort(keys, bits.iter().sum());
         let step = |k: u64, [dx, dy, dz]: [i64; 3]| {
             let offset = (dx << shift_x) + (dy << shift_y) + dz;
@@ -112,7 +111,7 @@ pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
         gathered_roots(&cell_keys, &order, points, distance, step)
     } else {
         // Cells spanning more than 2⁶⁴ in all: sort the coordinates as they are.
-        let mut keyed: Vec<([i64; 3], u32)> = cells.into_iter().zip(0u32..).collect();
+        let mut keyed: Vec<([i64; 3], u32)> = points.iter().map(cell).zip(0u32..).collect();
         keyed.sort_unstable();
         let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
         let cell_keys: Vec<[i64; 3]> = keyed.into_iter().map(|(c, _)| c).collect();
@@ -143,34 +142,49 @@ pub(in crate::kernel::ops) fn cell_coordinate(x: f64, distance: f64) -> i64 {
 }
 
 /// Sorts `keys` (of `bits` significant bits), returning the sorted keys
-/// and, for each, its original index; equal keys stay in index order. One
-/// radix pass on the top 11 bits spreads the keys into cache-sized buckets,
-/// each then sorted by (key, index): linear for spread-out keys, and never
-/// worse than a comparison sort for clumped ones.
+/// and, for each, its original index; equal keys stay in index order.
+/// Least significant digit first, in passes of at most 12 bits: each pass
+/// is stable, so starting from index order the result is ordered by
+/// (key, index). Linear whatever the keys' spread; the digit counts of
+/// every pass are taken in one read of the keys.
 pub(super) fn radix_sort(keys: Vec<u64>, bits: u32) -> (Vec<u64>, Vec<u32>) {
-    const DIGIT: u32 = 11;
-    const BUCKETS: usize = 1 << DIGIT;
-    let shift = bits.saturating_sub(DIGIT);
-    let bucket = |k: u64| (k >> shift) as usize & (BUCKETS - 1);
-    let mut start = vec![0usize; BUCKETS + 1];
+    const MAX_DIGIT: u32 = 12;
+    let passes = bits.div_ceil(MAX_DIGIT) as usize;
+    let mut keys = keys;
+    let mut order: Vec<u32> = (0..keys.len() as u32).collect();
+    if passes == 0 {
+        return (keys, order);
+    }
+    // Equal digit widths: 34 bits sort in three passes of 12, 12 and 10.
+    let digit = bits.div_ceil(passes as u32);
+    let buckets = 1usize << digit;
+    let mask = buckets as u64 - 1;
+    let mut counts = vec![0usize; passes * buckets];
     for &k in &keys {
-        start[bucket(k) + 1] += 1;
+        for pass in 0..passes {
+            counts[pass * buckets + ((k >> (pass as u32 * digit)) & mask) as usize] += 1;
+        }
     }
-    for b in 0..BUCKETS {
-        start[b + 1] += start[b];
+    let (mut keys_to, mut order_to) = (vec![0u64; keys.len()], vec![0u32; keys.len()]);
+    for pass in 0..passes {
+        let shift = pass as u32 * digit;
+        let next = &mut counts[pass * buckets..(pass + 1) * buckets];
+        let mut total = 0;
+        for count in next.iter_mut() {
+            let c = *count;
+            *count = total;
+            total += c;
+        }
+        for (&k, &i) in keys.iter().zip(&order) {
+            let slot = &mut next[((k >> shift) & mask) as usize];
+            keys_to[*slot] = k;
+            order_to[*slot] = i;
+            *slot += 1;
+        }
+        std::mem::swap(&mut keys, &mut keys_to);
+        std::mem::swap(&mut order, &mut order_to);
     }
-    let mut next = start.clone();
-    let mut pairs = vec![(0u64, 0u32); keys.len()];
-    for (i, &k) in keys.iter().enumerate() {
-        let b = bucket(k);
-        pairs[next[b]] = (k, i as u32);
-        next[b] += 1;
-    }
-    drop(keys);
-    for b in 0..BUCKETS {
-        pairs[start[b]..start[b + 1]].sort_unstable();
-    }
-    pairs.into_iter().unzip()
+    (keys, order)
 }
 
 /// Whether `a` and `b` are at most `distance` apart. Uses the hardware

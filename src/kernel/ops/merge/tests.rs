@@ -550,3 +550,35 @@ fn merge_a_million_points_in_linear_time() {
     m.validate().unwrap();
     assert_eq!(m.vert_count(), 301 * 301);
 }
+
+/// The radix sort orders by (key, index) for every key width, repeated
+/// keys included.
+#[test]
+fn radix_sort_orders_by_key_then_index() {
+    use super::cluster::radix_sort;
+    let mut rng = Rng(41);
+    for bits in [0u32, 1, 5, 12, 13, 34, 63, 64] {
+        for len in [0usize, 1, 7, 1000] {
+            let mask = if bits == 64 {
+                u64::MAX
+            } else {
+                (1u64 << bits) - 1
+            };
+            // Few distinct values as well as spread ones.
+            let keys: Vec<u64> = (0..len)
+                .map(|i| {
+                    if i % 3 == 0 {
+                        rng.next() & mask & 0xF
+                    } else {
+                        rng.next() & mask
+                    }
+                })
+                .collect();
+            let mut want: Vec<(u64, u32)> = keys.iter().copied().zip(0u32..).collect();
+            want.sort_unstable();
+            let (sorted, order) = radix_sort(keys, bits);
+            let got: Vec<(u64, u32)> = sorted.into_iter().zip(order).collect();
+            assert_eq!(got, want, "{bits} bits, {len} keys");
+        }
+    }
+}

@@ -83,8 +83,10 @@ pub(in crate::kernel::ops) fn weld_gone(
         }
     }
     // Step 1: no face may hold two vertices of one cluster when gluing.
+    // `clean` is the ascending subsequence of `affected` that stays.
+    let mut kept = clean.iter().peekable();
     for &f in &affected {
-        if clean.binary_search(&f).is_err() {
+        if kept.next_if_eq(&&f).is_none() {
             mesh.kill_face(f)?;
         }
     }
@@ -103,8 +105,10 @@ pub(in crate::kernel::ops) fn weld_gone(
     }
     // Step 3: welded twins.
     let is_affected = |g: FaceId| affected.binary_search(&g).is_ok();
+    let mut ring: Vec<VertId> = Vec::new();
     for &f in &clean {
-        let ring: Vec<VertId> = mesh.face_verts(f).collect();
+        ring.clear();
+        ring.extend(mesh.face_verts(f));
         if twin(mesh, &ring, |g| g != f && (!is_affected(g) || g < f)).is_some() {
             mesh.kill_face(f)?;
             result.faces_removed += 1;
@@ -168,24 +172,30 @@ impl SurvivorMap {
 }
 
 /// A face other than those `accept` refuses, with the same vertex set as
-/// `ring` (the test of [`Mesh::find_face`], with a filter).
+/// `ring` (the test of [`Mesh::find_face`], with a filter). `ring` holds
+/// no vertex twice, nor does a face: equal lengths and every corner of the
+/// candidate in `ring` make the sets equal. Small rings compare pairwise,
+/// without allocating (the weld asks this of every face it kept).
 pub(super) fn twin(
     mesh: &Mesh,
     ring: &[VertId],
     accept: impl Fn(FaceId) -> bool,
 ) -> Option<FaceId> {
+    const PAIRWISE: usize = 8;
     let e = mesh.find_edge(ring[0], ring[1])?;
-    let mut key = ring.to_vec();
-    key.sort_unstable();
-    let mut other = Vec::with_capacity(ring.len());
+    let sorted = (ring.len() > PAIRWISE).then(|| {
+        let mut key = ring.to_vec();
+        key.sort_unstable();
+        key
+    });
     mesh.edge_faces(e).find(|&g| {
         if !accept(g) || mesh.face_len(g) != ring.len() {
             return false;
         }
-        other.clear();
-        other.extend(mesh.face_verts(g));
-        other.sort_unstable();
-        other == key
+        match &sorted {
+            None => mesh.face_verts(g).all(|v| ring.contains(&v)),
+            Some(key) => mesh.face_verts(g).all(|v| key.binary_search(&v).is_ok()),
+        }
     })
 }
 
