@@ -9,6 +9,7 @@ pub mod geom;
 pub mod grammar;
 pub mod io;
 pub mod kernel;
+pub mod mem;
 pub mod nurbs;
 pub mod preview;
 pub mod rules;

@@ -900,14 +900,24 @@ impl Mesh {
     }
 
     fn reverse_face_links(&mut self, f: FaceId) {
-        let loops: Vec<LoopId> = self.face_loops(f).collect();
-        let starts: Vec<VertId> = loops.iter().map(|&l| self.lp(l).vert).collect();
-        let n = loops.len();
-        for (i, &l) in loops.iter().enumerate() {
+        // Loop i ran v_i -> v_{i+1}; it now runs v_{i+1} -> v_i. Walked
+        // once around without collecting (extrusion reverses every face
+        // it keeps): loop i reads v_{i+1} before loop i + 1 is rewritten.
+        let face = self.face(f);
+        let (first, len) = (face.first_loop, face.len);
+        let first_vert = self.lp(first).vert;
+        let mut l = first;
+        for i in 0..len {
+            let next = self.lp(l).next;
+            let vert = if i + 1 == len {
+                first_vert
+            } else {
+                self.lp(next).vert
+            };
             let lp = self.loop_mut(l);
-            // Loop i ran v_i -> v_{i+1}; it now runs v_{i+1} -> v_i.
-            lp.vert = starts[(i + 1) % n];
+            lp.vert = vert;
             std::mem::swap(&mut lp.next, &mut lp.prev);
+            l = next;
         }
     }
 

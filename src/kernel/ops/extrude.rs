@@ -277,6 +277,9 @@ pub fn extrude_faces(
     // Every face adds n vertices, 2n edges, n + 1 faces and 5n loops.
     mesh.reserve(corners, 2 * corners, 5 * corners, corners + faces.len());
     let mut result = Selection::new();
+    result.verts.reserve(corners);
+    result.edges.reserve(2 * corners);
+    result.faces.reserve(corners + faces.len());
     let (mut copies, mut top_edges) = (Vec::new(), Vec::new());
     let mut sides = Vec::new();
     for (k, &face) in faces.iter().enumerate() {
