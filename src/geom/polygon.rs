@@ -153,9 +153,14 @@ fn triangulate_impl(points: &[DVec3], out: &mut Vec<[u32; 3]>, want_normal: bool
             None
         };
     }
-    if n == 3 && !want_normal {
+    if n == 3 {
+        // A triangle is its own triangulation (a fan, also when degenerate).
         out.push([0, 1, 2]);
-        return None;
+        return if want_normal {
+            unit_normal_of(&[points[0], points[1], points[2]])
+        } else {
+            None
+        };
     }
     let Some(frame) = Frame::new(points) else {
         fan(n, out);

@@ -155,7 +155,13 @@ impl MeshSink for IndexedMesh {
         *self = IndexedMesh::new();
         self.positions.reserve(begin.vertices);
         self.face_starts.reserve(begin.polygons);
+        self.face_indices.reserve(begin.corners);
         self.lines.reserve(begin.lines);
+        // Written front to back right away: their pages are mapped on the
+        // other core meanwhile.
+        crate::mem::prefault_spare(&mut self.positions, begin.vertices);
+        crate::mem::prefault_spare(&mut self.face_starts, begin.polygons);
+        crate::mem::prefault_spare(&mut self.face_indices, begin.corners);
         self.vertex_scalars = begin
             .scalars
             .iter()

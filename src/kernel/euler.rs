@@ -311,9 +311,11 @@ impl Mesh {
     pub fn make_face(&mut self, ring: &[VertId]) -> Result<FaceId, KernelError> {
         self.check_face_ring(ring)?;
         Ok(
-            self.make_face_unchecked(ring, |mesh, _, v, w| match mesh.find_edge(v, w) {
-                Some(e) => e,
-                None => mesh.new_edge_unchecked(v, w),
+            self.make_face_unchecked(ring, Normals::Refresh, |mesh, _, v, w| {
+                match mesh.find_edge(v, w) {
+                    Some(e) => e,
+                    None => mesh.new_edge_unchecked(v, w),
+                }
             }),
         )
     }
@@ -326,6 +328,26 @@ impl Mesh {
         &mut self,
         ring: &[VertId],
         edges: &[EdgeId],
+    ) -> Result<FaceId, KernelError> {
+        self.make_face_on_edges_with(ring, edges, Normals::Refresh)
+    }
+
+    /// [`Mesh::make_face_on_edges`] leaving the stored normal zero, for an
+    /// operator that moves the new face's corners and then refreshes it
+    /// (mirror: copy, reflect, reverse), so the normal is computed once.
+    pub(in crate::kernel) fn make_face_on_edges_unrefreshed(
+        &mut self,
+        ring: &[VertId],
+        edges: &[EdgeId],
+    ) -> Result<FaceId, KernelError> {
+        self.make_face_on_edges_with(ring, edges, Normals::Defer)
+    }
+
+    fn make_face_on_edges_with(
+        &mut self,
+        ring: &[VertId],
+        edges: &[EdgeId],
+        normals: Normals,
     ) -> Result<FaceId, KernelError> {
         self.check_face_ring(ring)?;
         if edges.len() != ring.len() {
@@ -341,7 +363,7 @@ impl Mesh {
                 return Err(KernelError::NotARing(e));
             }
         }
-        Ok(self.make_face_unchecked(ring, |_, i, _, _| edges[i]))
+        Ok(self.make_face_unchecked(ring, normals, |_, i, _, _| edges[i]))
     }
 
     /// The edge joining two distinct live vertices, made (as a wire edge)
@@ -387,6 +409,7 @@ impl Mesh {
     fn make_face_unchecked(
         &mut self,
         ring: &[VertId],
+        normals: Normals,
         mut side: impl FnMut(&mut Self, usize, VertId, VertId) -> EdgeId,
     ) -> FaceId {
         let f = FaceId(self.faces.insert(Face {
@@ -416,7 +439,9 @@ impl Mesh {
         self.loop_mut(first).prev = last;
         self.face_mut(f).first_loop = first;
         self.attributes.on_new(Domain::Face, f.index());
-        self.refresh_normal(f);
+        if normals == Normals::Refresh {
+            self.refresh_normal(f);
+        }
         f
     }
 

@@ -162,6 +162,10 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                 vertices: Vec::with_capacity(corners),
                 indices: Vec::with_capacity(3 * (corners - 2 * polygons.len())),
             };
+            // Every index is written; how many vertices are shared is not
+            // known, so only the indices' pages are mapped ahead.
+            let indices = draw.indices.capacity();
+            crate::mem::prefault_spare(&mut draw.indices, indices);
             sharing.next.reserve(corners);
             let smooth = !mesh.corner_normals.is_empty();
             for &k in polygons {
@@ -523,6 +527,8 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u8>
         .flatten()
         .map(|d| d.vertices.len() * per_vertex(d) + d.indices.len())
         .sum();
+    let mut buffer = Vec::with_capacity(4 * words + GLB_FRONT_ROOM);
+    crate::mem::prefault_spare(&mut buffer, 4 * words);
     let mut b = Builder {
         root: json::Root {
             asset: json::Asset {
@@ -533,7 +539,7 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u8>
         },
         // Room in front for the GLB header and JSON, moved in at the end
         // (one buffer, no second copy; a larger JSON only reallocates).
-        words: Words(Vec::with_capacity(4 * words + GLB_FRONT_ROOM)),
+        words: Words(buffer),
         custom: Vec::new(),
     };
     // Every material is written, in index order, used or not.

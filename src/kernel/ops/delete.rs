@@ -93,7 +93,7 @@ pub fn delete(
 /// so the copy of a lower id gets the lower new id when slots are fresh.
 /// Returns the copies.
 pub fn duplicate(mesh: &mut Mesh, selection: &Selection) -> Result<Selection, OpError> {
-    Ok(duplicate_mapped(mesh, selection)?.copies)
+    Ok(duplicate_mapped(mesh, selection, true)?.copies)
 }
 
 /// A duplicate with the original → copy vertex map (for mirror).
@@ -103,9 +103,12 @@ pub(crate) struct Duplicated {
     pub(crate) vert_pairs: Vec<(VertId, VertId)>,
 }
 
+/// With `normals` false the copied faces' stored normals are left zero:
+/// the caller moves the copies and refreshes every copied face itself.
 pub(crate) fn duplicate_mapped(
     mesh: &mut Mesh,
     selection: &Selection,
+    normals: bool,
 ) -> Result<Duplicated, OpError> {
     let (sel_verts, sel_edges, faces) = checked(mesh, selection)?;
     let mut edges = sel_edges;
@@ -157,7 +160,11 @@ pub(crate) fn duplicate_mapped(
             );
         }
         // The copy's edges exist already (made above), side by side.
-        let copy = mesh.make_face_on_edges(&ring, &sides)?;
+        let copy = if normals {
+            mesh.make_face_on_edges(&ring, &sides)?
+        } else {
+            mesh.make_face_on_edges_unrefreshed(&ring, &sides)?
+        };
         mesh.copy_face_attrs(f, copy);
         new_faces.push(copy);
     }

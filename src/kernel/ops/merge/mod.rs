@@ -145,7 +145,8 @@ pub fn mirror(
         }
     }
 
-    let dup = duplicate_mapped(mesh, selection)?;
+    // Each copied face gets its normal once, when it is reversed below.
+    let dup = duplicate_mapped(mesh, selection, false)?;
     for &(_, copy) in &dup.vert_pairs {
         let p = mesh.position(copy);
         mesh.set_position(copy, reflect(p));
