@@ -2,6 +2,7 @@
 
     GRAFTAL=target/release/graftal python3 bench-peers/run.py [--runs N]
         [--only merge,glb,...] [--peers bmesh,libigl,...] [--with-occt] [--slow]
+        [--baseline OLD_GRAFTAL]
 
 Started by any python3, it sets up target/bench-peers/ (venv, Blender,
 curvo) and goes on in the venv's python. Every tool call is its own
@@ -34,6 +35,9 @@ INPUTS = OUT / "inputs"
 MESHES = OUT / "out"
 CURVO = OUT / "curvo-target" / "release" / "curvo-bench"
 GRAFTAL = Path(os.environ.get("GRAFTAL", ROOT / "target" / "release" / "graftal")).resolve()
+# The binary graftal's workload functions run: GRAFTAL, or the --baseline
+# binary while its turn in a round lasts.
+RUNNING = [GRAFTAL]
 CRITERION = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / "criterion"
 
 PACKAGES = ["numpy", "trimesh", "libigl", "cgal", "geomdl", "splinepy"]
@@ -65,6 +69,11 @@ def parse_args():
         help="install and run OCP (cadquery-ocp, ~450 MB); or BENCH_PEERS_OCCT=1",
     )
     p.add_argument("--slow", action="store_true", help="also run geomdl at 1000² (about 16 s a call)")
+    p.add_argument(
+        "--baseline",
+        type=Path,
+        help="another graftal binary (an earlier build) run in the same rounds: a 'graftal before' column",
+    )
     return p.parse_args()
 
 
@@ -232,9 +241,9 @@ def graftal_run(rule, ext=".ply"):
     batch = MESHES / f"{rule}-batch"
     shutil.rmtree(batch, ignore_errors=True)
     rules = str(INPUTS / f"{rule}.toml")
-    spawn([str(GRAFTAL), "run", rules, "--seeds", "0..1", "-o", str(batch / ("{seed}" + ext)), "--timings", "-q"])
+    spawn([str(RUNNING[0]), "run", rules, "--seeds", "0..1", "-o", str(batch / ("{seed}" + ext)), "--timings", "-q"])
     variant = json.loads((batch / "manifest.json").read_text())["variants"][0]
-    wall, _, rss = spawn([str(GRAFTAL), "run", rules, "-o", str(out), "-q"])
+    wall, _, rss = spawn([str(RUNNING[0]), "run", rules, "-o", str(out), "-q"])
     steps = {s["name"]: s for s in variant["steps"]}
     return variant["counts"], steps, wall, rss, out
 
@@ -277,7 +286,7 @@ def graftal_glb():
 
 
 def graftal_selfx():
-    argv = [str(GRAFTAL), "info", str(INPUTS / "selfx.ply"), "--json"]
+    argv = [str(RUNNING[0]), "info", str(INPUTS / "selfx.ply"), "--json"]
     wall, stdout, _ = spawn(argv)
     info = json.loads(stdout)
     return {"selfx": result(None, info, wall, pairs=info["self_intersecting_face_pairs"])}
@@ -565,12 +574,20 @@ def attempt(fn, *args):
         return {"error": str(err)}
 
 
-def measure(workload, peers, runs):
-    """Interleaved rounds: graftal, then each distinct peer call, then the next round."""
-    graftal_rounds, peer_rounds = [], []
+def measure(workload, peers, runs, baseline=None):
+    """Interleaved rounds: graftal (then the baseline graftal), then each
+    distinct peer call, then the next round."""
+    graftal_rounds, baseline_rounds, peer_rounds = [], [], []
     for r in range(runs):
         print(f"  round {r + 1}/{runs}: graftal", file=sys.stderr)
         graftal_rounds.append(attempt(workload.graftal))
+        if baseline:
+            print(f"  round {r + 1}/{runs}: graftal before ({baseline.name})", file=sys.stderr)
+            RUNNING[0] = baseline
+            try:
+                baseline_rounds.append(attempt(workload.graftal))
+            finally:
+                RUNNING[0] = GRAFTAL
         calls = {}
         for row in workload.rows:
             for name, argv in row.peers.items():
@@ -579,12 +596,14 @@ def measure(workload, peers, runs):
                     print(f"  round {r + 1}/{runs}: {name} {what}", file=sys.stderr)
                     calls[tuple(argv)] = attempt(peer, argv)
         peer_rounds.append(calls)
-    return graftal_rounds, peer_rounds
+    return graftal_rounds, baseline_rounds, peer_rounds
 
 
-def summarise(row, peers, graftal_rounds, peer_rounds):
+def summarise(row, peers, graftal_rounds, baseline_rounds, peer_rounds):
     """Per tool: median seconds (and wall), the last round's counts."""
     tools = {"graftal": [g.get(row.key, g) for g in graftal_rounds]}
+    if baseline_rounds:
+        tools[BEFORE] = [g.get(row.key, g) for g in baseline_rounds]
     for name, argv in row.peers.items():
         if name in peers:
             tools[name] = [calls[tuple(argv)] for calls in peer_rounds]
@@ -651,6 +670,20 @@ def cell(tool):
     return seconds(tool["seconds"])
 
 
+BEFORE = "graftal before"
+
+
+def speedup(tools):
+    """Baseline over graftal, on the step (else the whole process)."""
+    if BEFORE not in tools:
+        return None
+    now, then = tools["graftal"], tools[BEFORE]
+    for key in ("seconds", "wall"):
+        if now.get(key) and then.get(key):
+            return f"{then[key] / now[key]:.2f}"
+    return "–"
+
+
 def ratio(tools, peers):
     graftal = tools["graftal"]
     mine = graftal.get("seconds") if graftal.get("seconds") is not None else graftal.get("wall")
@@ -713,7 +746,8 @@ def machine(peers):
 
 
 def report(args, peers, results, notes):
-    columns = ["graftal step", "graftal whole process"] + peers
+    before = ["graftal before: step", "before / now"] if args.baseline else []
+    columns = ["graftal step", "graftal whole process"] + before + peers
     lines = [
         "# graftal and its peers",
         "",
@@ -722,7 +756,13 @@ def report(args, peers, results, notes):
         f"Median of {args.runs} interleaved rounds. Peers: the operation alone (input loaded first). "
         "graftal: the step's `time_ms` from a one-variant batch manifest (`--seeds 0..1 --timings`), and the whole process "
         "(a second, plain run). Ratio: best peer / graftal (step, else whole process); "
-        "above 1 means graftal is faster. ⚠ marks a row whose tools disagree.",
+        "above 1 means graftal is faster. ⚠ marks a row whose tools disagree."
+        + (
+            f" graftal before: `{args.baseline}`, run in the same rounds right after graftal;"
+            " before / now above 1 means graftal got faster."
+            if args.baseline
+            else ""
+        ),
         "",
         "| workload | " + " | ".join(columns) + " | best peer / graftal |",
         "|---" * (len(columns) + 2) + "|",
@@ -732,6 +772,9 @@ def report(args, peers, results, notes):
         flag = " ⚠" if bad else ""
         graftal = tools["graftal"]
         cells = [cell(graftal), "error" if "error" in graftal else seconds(graftal.get("wall"))]
+        if args.baseline:
+            then = tools.get(BEFORE)
+            cells += [cell(then) if then and then.get("seconds") is not None else seconds(then and then.get("wall")), speedup(tools)]
         cells += [cell(tools.get(p)) if p in row.peers else "–" for p in peers]
         label = f"{workload.title}: {row.label}{flag}"
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {ratio(tools, peers)} |")
@@ -783,6 +826,9 @@ def main():
         os.execv(str(PYTHON), [str(PYTHON), __file__, *sys.argv[1:]])
     if not GRAFTAL.exists():
         sys.exit(f"no graftal binary at {GRAFTAL}: build it or set GRAFTAL")
+    baseline = args.baseline.resolve() if args.baseline else None
+    if baseline and not baseline.exists():
+        sys.exit(f"no baseline binary at {baseline}")
     make_inputs()
     peers = available_peers(args)
     chosen = args.only.split(",") if args.only else WORKLOAD_NAMES
@@ -794,9 +840,9 @@ def main():
         if workload.name not in chosen:
             continue
         print(f"{workload.title}", file=sys.stderr)
-        graftal_rounds, peer_rounds = measure(workload, peers, args.runs)
+        graftal_rounds, baseline_rounds, peer_rounds = measure(workload, peers, args.runs, baseline)
         for row in workload.rows:
-            tools = summarise(row, peers, graftal_rounds, peer_rounds)
+            tools = summarise(row, peers, graftal_rounds, baseline_rounds, peer_rounds)
             bad = disagreements(row, tools)
             for line in bad:
                 print(f"!!! DISAGREEMENT in {workload.title}: {row.label}: {line}", file=sys.stderr)
