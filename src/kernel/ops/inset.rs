@@ -31,11 +31,10 @@
 //! outer edge's, inner and ring faces the original face's.
 
 use glam::DVec3;
-use rustc_hash::FxHashSet;
 
-use super::side_table::SideTable;
+use super::side_table::{SideTable, SlotBits};
 
-use super::{canonical, into_canonical, OpError, Selection};
+use super::{canonical, OpError, Selection};
 use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
 
 /// Rejects non-finite parameters and a negative thickness (an outset would
@@ -256,20 +255,90 @@ pub fn inset_region(
     for &f in &faces {
         mesh.check_face(f)?;
     }
-    // Side tables: slot-indexed for a big region, hashed for a small one
-    // (the cost stays proportional to the region).
-    let mut face_normal: SideTable<DVec3> = SideTable::new(faces.len(), mesh.face_capacity());
+    // Membership and the region's edges and vertices, ascending, from one
+    // walk over the faces' corners (bits per slot: a region that is a good
+    // part of the mesh names each vertex about four times).
+    let mut in_region = SlotBits::new(mesh.face_capacity());
+    let mut edge_bits = SlotBits::new(mesh.edge_capacity());
+    let mut vert_bits = SlotBits::new(mesh.vert_capacity());
     for &f in &faces {
-        face_normal.insert(f.index(), mesh.compute_face_normal(f));
+        in_region.insert(f.index());
+        for l in mesh.face_loops(f) {
+            edge_bits.insert(mesh.loop_edge(l).index());
+            vert_bits.insert(mesh.loop_vert(l).index());
+        }
     }
-    // Distinct and ascending, by slot marks when the region is a good part
-    // of the mesh (each vertex is named about four times).
-    let region_edges = into_canonical(faces.iter().flat_map(|&f| mesh.face_edges(f)).collect());
-    let region_verts = into_canonical(faces.iter().flat_map(|&f| mesh.face_verts(f)).collect());
+    let region_edges: Vec<EdgeId> = edge_bits.iter().map(EdgeId::from_index).collect();
+    let region_verts: Vec<VertId> = vert_bits.iter().map(VertId::from_index).collect();
 
-    // Per region vertex its normal and mitre rate; the boundary edges
-    // (direction, inward direction) arriving at and leaving it only for
-    // the vertices on the outline, which a big region has few of.
+    // Boundary edges, run x → y as their one region face runs them.
+    struct Boundary {
+        x: VertId,
+        y: VertId,
+        face: FaceId,
+    }
+    let mut boundary: Vec<Boundary> = Vec::new();
+    let mut boundary_edge = SlotBits::new(mesh.edge_capacity());
+    for &e in &region_edges {
+        let mut region_loops = mesh
+            .edge_loops(e)
+            .filter(|&l| in_region.contains(mesh.lp(l).face.index()));
+        if let (Some(only), None) = (region_loops.next(), region_loops.next()) {
+            let x = mesh.lp(only).vert;
+            let y = mesh.edge_other_vert(e, x);
+            boundary.push(Boundary {
+                x,
+                y,
+                face: mesh.lp(only).face,
+            });
+            boundary_edge.insert(e.index());
+        }
+    }
+    let mut on_outline = SlotBits::new(mesh.vert_capacity());
+    for b in &boundary {
+        on_outline.insert(b.x.index());
+        on_outline.insert(b.y.index());
+    }
+    let is_boundary = |v: VertId| on_outline.contains(v.index());
+
+    // Region vertex normals (normalised mean of the unit normals of the
+    // region faces around a vertex) are needed on the outline (the mitre
+    // lies in the tangent plane there) and, when `depth` lifts the inner
+    // region, everywhere. An interior vertex at depth 0 moves by
+    // `0 · rate + normal · 0`, the same zero whatever its normal, so only
+    // the outline's faces and vertices are measured then: the cost of a
+    // big flat inset follows its outline. Side tables: slot-indexed for a
+    // big set, hashed for a small one.
+    let everywhere = depth != 0.0;
+    let normal_verts: Vec<VertId> = if everywhere {
+        region_verts.clone()
+    } else {
+        region_verts
+            .iter()
+            .copied()
+            .filter(|&v| is_boundary(v))
+            .collect()
+    };
+    let mut face_normal: SideTable<DVec3> = SideTable::new(
+        if everywhere {
+            faces.len()
+        } else {
+            4 * normal_verts.len()
+        },
+        mesh.face_capacity(),
+    );
+    for &v in &normal_verts {
+        for f in mesh.vert_faces(v) {
+            if in_region.contains(f.index()) && !face_normal.contains(f.index()) {
+                face_normal.insert(f.index(), mesh.compute_face_normal(f));
+            }
+        }
+    }
+
+    // Per region vertex its normal and mitre rate (zero inside the
+    // region); the boundary edges (direction, inward direction) arriving
+    // at and leaving it only for the outline's vertices.
+    #[derive(Clone, Copy)]
     struct Corner {
         normal: DVec3,
         rate: DVec3,
@@ -279,8 +348,12 @@ pub fn inset_region(
         arriving: Vec<(DVec3, DVec3)>,
         leaving: Vec<(DVec3, DVec3)>,
     }
-    let mut corners: SideTable<Corner> = SideTable::new(region_verts.len(), mesh.vert_capacity());
-    for &v in &region_verts {
+    const STILL: Corner = Corner {
+        normal: DVec3::ZERO,
+        rate: DVec3::ZERO,
+    };
+    let mut corners: SideTable<Corner> = SideTable::new(normal_verts.len(), mesh.vert_capacity());
+    for &v in &normal_verts {
         let normal = mesh
             .vert_faces(v)
             .filter_map(|f| face_normal.get(f.index()).copied())
@@ -294,36 +367,12 @@ pub fn inset_region(
             },
         );
     }
-
-    // Boundary edges, run x → y as their one region face runs them.
-    struct Boundary {
-        x: VertId,
-        y: VertId,
-        face: FaceId,
-    }
-    let mut boundary: Vec<Boundary> = Vec::new();
-    let mut boundary_edge: FxHashSet<EdgeId> = FxHashSet::default();
-    for &e in &region_edges {
-        let mut region_loops = mesh
-            .edge_loops(e)
-            .filter(|&l| face_normal.contains(mesh.lp(l).face.index()));
-        if let (Some(only), None) = (region_loops.next(), region_loops.next()) {
-            let x = mesh.lp(only).vert;
-            let y = mesh.edge_other_vert(e, x);
-            boundary.push(Boundary {
-                x,
-                y,
-                face: mesh.lp(only).face,
-            });
-            boundary_edge.insert(e);
-        }
-    }
     let mut outline: SideTable<Outline> = SideTable::new(2 * boundary.len(), mesh.vert_capacity());
     for b in &boundary {
         let u = (mesh.position(b.y) - mesh.position(b.x)).normalize_or_zero();
         let m = face_normal
             .get(b.face.index())
-            .expect("a region face")
+            .expect("a region face on the outline")
             .cross(u);
         for (v, leaves) in [(b.x, true), (b.y, false)] {
             if !outline.contains(v.index()) {
@@ -337,8 +386,7 @@ pub fn inset_region(
             }
         }
     }
-    let is_boundary = |v: VertId| outline.contains(v.index());
-    for &v in &region_verts {
+    for &v in &normal_verts {
         let Some(o) = outline.get(v.index()) else {
             continue;
         };
@@ -355,7 +403,7 @@ pub fn inset_region(
             }
         };
     }
-    let corner = |v: VertId| corners.get(v.index()).expect("a region vertex");
+    let corner = |v: VertId| corners.get(v.index()).copied().unwrap_or(STILL);
     let t = clamp_to_first_edge_event(
         thickness,
         region_edges.iter().map(|&e| {
@@ -440,7 +488,7 @@ pub fn inset_region(
     for &e in &region_edges {
         let [a, b] = mesh.edge_verts(e);
         let from_outline = is_boundary(a) || is_boundary(b);
-        if from_outline && !boundary_edge.contains(&e) && mesh.edge_face_count(e) == 0 {
+        if from_outline && !boundary_edge.contains(e.index()) && mesh.edge_face_count(e) == 0 {
             mesh.kill_edge(e)?;
         }
     }
@@ -633,6 +681,51 @@ mod tests {
         m.validate().unwrap();
         assert_eq!(m.position(centre), DVec3::new(0.0, 0.0, 0.3));
         assert!(r.verts.iter().all(|&v| m.position(v).z == 0.3));
+    }
+
+    #[test]
+    fn inset_region_at_depth_zero_leaves_the_interior_where_it_was() {
+        // A bumpy 6×6 grid, some coordinates −0: at depth 0 only the
+        // outline is measured, and the interior's targets are its own
+        // positions plus zero (−0 becomes +0, as `p + 0·rate + n·0` does).
+        let mut m = grid(6, 6, 1.0);
+        let verts: Vec<VertId> = m.vert_ids().collect();
+        for (k, &v) in verts.iter().enumerate() {
+            let p = m.position(v);
+            let z = if k % 5 == 0 {
+                -0.0
+            } else {
+                0.2 * (p.x * 1.3).sin() * (p.y * 0.7).cos()
+            };
+            m.set_position(v, DVec3::new(if p.x == 0.0 { -0.0 } else { p.x }, p.y, z));
+        }
+        m.refresh_normals();
+        let before: Vec<DVec3> = verts.iter().map(|&v| m.position(v)).collect();
+        // The region: all but the first column of faces.
+        let faces: Vec<FaceId> = m
+            .face_ids()
+            .filter(|&f| m.face_verts(f).all(|v| m.position(v).x > -3.0))
+            .collect();
+        let r = inset_region(&mut m, &faces, 0.05, 0.0).unwrap();
+        m.validate().unwrap();
+        let bits = |p: DVec3| p.to_array().map(f64::to_bits);
+        let mut interior = 0;
+        for (&v, &p) in verts.iter().zip(&before) {
+            // Strictly inside the region's block x ∈ [−2, 3], y ∈ [−3, 3].
+            if p.x > -2.0 && p.x < 3.0 && p.y.abs() < 3.0 {
+                interior += 1;
+                assert_eq!(bits(m.position(v)), bits(p + DVec3::ZERO), "{v:?}");
+            } else {
+                assert_eq!(bits(m.position(v)), bits(p), "outline and outside stay");
+            }
+        }
+        assert_eq!(interior, 4 * 5);
+        assert_eq!(
+            r.verts.len(),
+            2 * (5 + 6),
+            "an inner copy per outline vertex"
+        );
+        assert!(consistently_wound(&m));
     }
 
     #[test]

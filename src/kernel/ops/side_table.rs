@@ -57,6 +57,43 @@ impl<V> SideTable<V> {
     }
 }
 
+/// A set of slot indices as one bit a slot: membership tests that an
+/// operator makes for every corner of a big region (is this vertex on the
+/// outline?) are a shift and a mask, not a hash probe. A million slots
+/// take 125 KB.
+pub(crate) struct SlotBits(Vec<u64>);
+
+impl SlotBits {
+    pub fn new(capacity: usize) -> Self {
+        SlotBits(vec![0; capacity.div_ceil(64)])
+    }
+
+    pub fn insert(&mut self, index: usize) {
+        self.0[index / 64] |= 1 << (index % 64);
+    }
+
+    #[inline]
+    pub fn contains(&self, index: usize) -> bool {
+        self.0
+            .get(index / 64)
+            .is_some_and(|word| word & (1 << (index % 64)) != 0)
+    }
+
+    /// The indices held, ascending.
+    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        self.0.iter().enumerate().flat_map(|(w, &word)| {
+            let mut rest = word;
+            std::iter::from_fn(move || {
+                (rest != 0).then(|| {
+                    let bit = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    w * 64 + bit
+                })
+            })
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -74,5 +111,16 @@ mod tests {
             assert!(!t.contains(4));
             assert_eq!(t.get(capacity + 5), None);
         }
+    }
+
+    #[test]
+    fn slot_bits_hold_what_was_inserted() {
+        let mut bits = SlotBits::new(130);
+        for i in [0, 63, 64, 129] {
+            bits.insert(i);
+        }
+        let held: Vec<usize> = (0..200).filter(|&i| bits.contains(i)).collect();
+        assert_eq!(held, [0, 63, 64, 129]);
+        assert_eq!(bits.iter().collect::<Vec<_>>(), held);
     }
 }
