@@ -159,9 +159,11 @@ impl MeshSink for IndexedMesh {
         self.lines.reserve(begin.lines);
         // Written front to back right away: their pages are mapped on the
         // other core meanwhile.
-        crate::mem::prefault_spare(&mut self.positions, begin.vertices);
-        crate::mem::prefault_spare(&mut self.face_starts, begin.polygons);
-        crate::mem::prefault_spare(&mut self.face_indices, begin.corners);
+        let mut prefault = crate::mem::Prefault::default();
+        prefault.add(&mut self.positions, begin.vertices);
+        prefault.add(&mut self.face_starts, begin.polygons);
+        prefault.add(&mut self.face_indices, begin.corners);
+        prefault.start();
         self.vertex_scalars = begin
             .scalars
             .iter()
