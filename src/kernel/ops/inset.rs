@@ -32,7 +32,7 @@
 
 use glam::DVec3;
 
-use super::side_table::{SideTable, SlotBits};
+use super::side_table::{SideTable, SlotSet};
 
 use super::{canonical, OpError, Selection};
 use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
@@ -256,20 +256,29 @@ pub fn inset_region(
         mesh.check_face(f)?;
     }
     // Membership and the region's edges and vertices, ascending, from one
-    // walk over the faces' corners (bits per slot: a region that is a good
-    // part of the mesh names each vertex about four times).
-    let mut in_region = SlotBits::new(mesh.face_capacity());
-    let mut edge_bits = SlotBits::new(mesh.edge_capacity());
-    let mut vert_bits = SlotBits::new(mesh.vert_capacity());
+    // walk over the faces' corners (a region that is a good part of the
+    // mesh names each vertex about four times; its sets are bitmaps).
+    let corner_count: usize = faces.iter().map(|&f| mesh.face_len(f)).sum();
+    let mut in_region = SlotSet::new(faces.len(), mesh.face_capacity());
+    let mut edge_set = SlotSet::new(corner_count, mesh.edge_capacity());
+    let mut vert_set = SlotSet::new(corner_count, mesh.vert_capacity());
     for &f in &faces {
         in_region.insert(f.index());
         for l in mesh.face_loops(f) {
-            edge_bits.insert(mesh.loop_edge(l).index());
-            vert_bits.insert(mesh.loop_vert(l).index());
+            edge_set.insert(mesh.loop_edge(l).index());
+            vert_set.insert(mesh.loop_vert(l).index());
         }
     }
-    let region_edges: Vec<EdgeId> = edge_bits.iter().map(EdgeId::from_index).collect();
-    let region_verts: Vec<VertId> = vert_bits.iter().map(VertId::from_index).collect();
+    let region_edges: Vec<EdgeId> = edge_set
+        .into_sorted()
+        .into_iter()
+        .map(EdgeId::from_index)
+        .collect();
+    let region_verts: Vec<VertId> = vert_set
+        .into_sorted()
+        .into_iter()
+        .map(VertId::from_index)
+        .collect();
 
     // Boundary edges, run x → y as their one region face runs them.
     struct Boundary {
@@ -278,7 +287,7 @@ pub fn inset_region(
         face: FaceId,
     }
     let mut boundary: Vec<Boundary> = Vec::new();
-    let mut boundary_edge = SlotBits::new(mesh.edge_capacity());
+    let mut boundary_edge = SlotSet::new(region_edges.len(), mesh.edge_capacity());
     for &e in &region_edges {
         let mut region_loops = mesh
             .edge_loops(e)
@@ -294,7 +303,7 @@ pub fn inset_region(
             boundary_edge.insert(e.index());
         }
     }
-    let mut on_outline = SlotBits::new(mesh.vert_capacity());
+    let mut on_outline = SlotSet::new(2 * boundary.len(), mesh.vert_capacity());
     for b in &boundary {
         on_outline.insert(b.x.index());
         on_outline.insert(b.y.index());
@@ -310,14 +319,16 @@ pub fn inset_region(
     // big flat inset follows its outline. Side tables: slot-indexed for a
     // big set, hashed for a small one.
     let everywhere = depth != 0.0;
-    let normal_verts: Vec<VertId> = if everywhere {
-        region_verts.clone()
+    let outline_verts: Vec<VertId>;
+    let normal_verts: &[VertId] = if everywhere {
+        &region_verts
     } else {
-        region_verts
+        outline_verts = region_verts
             .iter()
             .copied()
             .filter(|&v| is_boundary(v))
-            .collect()
+            .collect();
+        &outline_verts
     };
     let mut face_normal: SideTable<DVec3> = SideTable::new(
         if everywhere {
@@ -327,10 +338,16 @@ pub fn inset_region(
         },
         mesh.face_capacity(),
     );
-    for &v in &normal_verts {
-        for f in mesh.vert_faces(v) {
-            if in_region.contains(f.index()) && !face_normal.contains(f.index()) {
-                face_normal.insert(f.index(), mesh.compute_face_normal(f));
+    if everywhere {
+        for &f in &faces {
+            face_normal.insert(f.index(), mesh.compute_face_normal(f));
+        }
+    } else {
+        for &v in normal_verts {
+            for f in mesh.vert_faces(v) {
+                if in_region.contains(f.index()) && !face_normal.contains(f.index()) {
+                    face_normal.insert(f.index(), mesh.compute_face_normal(f));
+                }
             }
         }
     }
@@ -353,7 +370,7 @@ pub fn inset_region(
         rate: DVec3::ZERO,
     };
     let mut corners: SideTable<Corner> = SideTable::new(normal_verts.len(), mesh.vert_capacity());
-    for &v in &normal_verts {
+    for &v in normal_verts {
         let normal = mesh
             .vert_faces(v)
             .filter_map(|f| face_normal.get(f.index()).copied())
@@ -386,7 +403,7 @@ pub fn inset_region(
             }
         }
     }
-    for &v in &normal_verts {
+    for &v in normal_verts {
         let Some(o) = outline.get(v.index()) else {
             continue;
         };
@@ -681,6 +698,31 @@ mod tests {
         m.validate().unwrap();
         assert_eq!(m.position(centre), DVec3::new(0.0, 0.0, 0.3));
         assert!(r.verts.iter().all(|&v| m.position(v).z == 0.3));
+    }
+
+    #[test]
+    fn inset_region_of_a_few_faces_in_a_big_mesh_uses_hashed_sets() {
+        // The 2×2 block at the centre of a 40×40 grid (sets hashed, not
+        // bitmaps of the mesh) insets as the lone 2×2 grid does.
+        let mut m = grid(40, 40, 1.0);
+        let faces: Vec<FaceId> = m
+            .face_ids()
+            .filter(|&f| {
+                m.face_verts(f)
+                    .all(|v| m.position(v).abs().max_element() <= 1.0)
+            })
+            .collect();
+        assert_eq!(faces.len(), 4);
+        let before = counts(&m);
+        let r = inset_region(&mut m, &faces, 0.1, 0.0).unwrap();
+        m.validate().unwrap();
+        assert_eq!((r.verts.len(), r.edges.len(), r.faces.len()), (8, 20, 12));
+        assert_eq!(counts(&m), (before.0 + 8, before.1 + 16, before.2 + 8));
+        for &v in &r.verts {
+            let p = m.position(v);
+            assert!((p.x.abs().max(p.y.abs()) - 0.9).abs() < 1e-12, "{p}");
+        }
+        assert!(consistently_wound(&m));
     }
 
     #[test]

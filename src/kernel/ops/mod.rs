@@ -104,19 +104,12 @@ pub(crate) fn sort_ids<T: SlotId>(ids: &mut Vec<T>) {
         ids.dedup();
         return;
     }
-    let mut bits = vec![0u64; max / 64 + 1];
+    let mut marks = side_table::SlotSet::bits(max + 1);
     for id in ids.iter() {
-        let slot = id.slot();
-        bits[slot / 64] |= 1 << (slot % 64);
+        marks.insert(id.slot());
     }
     ids.clear();
-    for (w, &word) in bits.iter().enumerate() {
-        let mut word = word;
-        while word != 0 {
-            ids.push(T::at_slot(w * 64 + word.trailing_zeros() as usize));
-            word &= word - 1;
-        }
-    }
+    ids.extend(marks.into_sorted().into_iter().map(T::at_slot));
 }
 
 /// Why a high-level operator failed.
@@ -160,6 +153,12 @@ mod tests {
         assert_eq!(into_canonical(ids), want);
         assert_eq!(into_canonical(want.clone()), want);
         assert!(into_canonical(Vec::<VertId>::new()).is_empty());
+        // Ids past any slot count are kept (a caller refuses them), not a panic.
+        let past: Vec<VertId> = [12, 3, 12].map(VertId::from_index).to_vec();
+        assert_eq!(
+            into_canonical(past),
+            [3, 12].map(VertId::from_index).to_vec()
+        );
         // Long lists: dense ones take the bitmap, sparse ones the sort;
         // both give the ascending distinct ids.
         for spread in [1usize, 7, 63, 64, 65, 1000] {

@@ -7,7 +7,7 @@
 //! cost stays proportional to the region. The choice follows the same rule
 //! as the weld's survivor map: dense from one element in eight.
 
-use rustc_hash::FxHashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 /// Values keyed by an element's slot index.
 pub(crate) enum SideTable<V> {
@@ -57,40 +57,74 @@ impl<V> SideTable<V> {
     }
 }
 
-/// A set of slot indices as one bit a slot: membership tests that an
-/// operator makes for every corner of a big region (is this vertex on the
-/// outline?) are a shift and a mask, not a hash probe. A million slots
-/// take 125 KB.
-pub(crate) struct SlotBits(Vec<u64>);
+/// A set of slot indices: one bit a slot when the set is a good part of
+/// the slots (membership an operator tests for every corner of a big
+/// region is then a shift and a mask, not a hash probe; a million slots
+/// take 125 KB), hashed otherwise, so the cost follows the set, never the
+/// mesh. Dense from one entry in 64 slots: the bitmap is then no larger
+/// than the entries as words.
+pub(crate) enum SlotSet {
+    Bits(Vec<u64>),
+    Hashed(FxHashSet<usize>),
+}
 
-impl SlotBits {
-    pub fn new(capacity: usize) -> Self {
-        SlotBits(vec![0; capacity.div_ceil(64)])
+impl SlotSet {
+    /// A set for about `entries` indices below `capacity`.
+    pub fn new(entries: usize, capacity: usize) -> Self {
+        if capacity <= entries.saturating_mul(64) {
+            Self::bits(capacity)
+        } else {
+            let mut set = FxHashSet::default();
+            set.reserve(entries);
+            SlotSet::Hashed(set)
+        }
     }
 
+    /// The bitmap form, for indices below `capacity`.
+    pub fn bits(capacity: usize) -> Self {
+        SlotSet::Bits(vec![0; capacity.div_ceil(64)])
+    }
+
+    #[inline]
     pub fn insert(&mut self, index: usize) {
-        self.0[index / 64] |= 1 << (index % 64);
+        match self {
+            SlotSet::Bits(words) => words[index / 64] |= 1 << (index % 64),
+            SlotSet::Hashed(set) => {
+                set.insert(index);
+            }
+        }
     }
 
     #[inline]
     pub fn contains(&self, index: usize) -> bool {
-        self.0
-            .get(index / 64)
-            .is_some_and(|word| word & (1 << (index % 64)) != 0)
+        match self {
+            SlotSet::Bits(words) => words
+                .get(index / 64)
+                .is_some_and(|word| word & (1 << (index % 64)) != 0),
+            SlotSet::Hashed(set) => set.contains(&index),
+        }
     }
 
     /// The indices held, ascending.
-    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
-        self.0.iter().enumerate().flat_map(|(w, &word)| {
-            let mut rest = word;
-            std::iter::from_fn(move || {
-                (rest != 0).then(|| {
-                    let bit = rest.trailing_zeros() as usize;
-                    rest &= rest - 1;
-                    w * 64 + bit
-                })
-            })
-        })
+    pub fn into_sorted(self) -> Vec<usize> {
+        match self {
+            SlotSet::Bits(words) => {
+                let mut out = Vec::new();
+                for (w, &word) in words.iter().enumerate() {
+                    let mut rest = word;
+                    while rest != 0 {
+                        out.push(w * 64 + rest.trailing_zeros() as usize);
+                        rest &= rest - 1;
+                    }
+                }
+                out
+            }
+            SlotSet::Hashed(set) => {
+                let mut out: Vec<usize> = set.into_iter().collect();
+                out.sort_unstable();
+                out
+            }
+        }
     }
 }
 
@@ -114,13 +148,16 @@ mod tests {
     }
 
     #[test]
-    fn slot_bits_hold_what_was_inserted() {
-        let mut bits = SlotBits::new(130);
-        for i in [0, 63, 64, 129] {
-            bits.insert(i);
+    fn slot_sets_hold_what_was_inserted_either_way() {
+        for (entries, capacity) in [(4, 130), (1, 1000)] {
+            let mut set = SlotSet::new(entries, capacity);
+            assert_eq!(matches!(set, SlotSet::Bits(_)), entries * 64 >= capacity);
+            for i in [129, 0, 63, 64, 0] {
+                set.insert(i);
+            }
+            let held: Vec<usize> = (0..200).filter(|&i| set.contains(i)).collect();
+            assert_eq!(held, [0, 63, 64, 129]);
+            assert_eq!(set.into_sorted(), held);
         }
-        let held: Vec<usize> = (0..200).filter(|&i| bits.contains(i)).collect();
-        assert_eq!(held, [0, 63, 64, 129]);
-        assert_eq!(bits.iter().collect::<Vec<_>>(), held);
     }
 }
