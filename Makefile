@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -52,6 +52,17 @@ lint:
 contact-sheet:
 	$(CARGO) build --release --quiet
 	$(TARGET_DIR)/release/graftal preview rules/*.toml rules/*.ron -o docs/examples.png --size 160
+
+## The README's Slurm recipe (job array + dependent merge, then a cancelled
+## task and its retry) on a real single-node Slurm started on localhost;
+## merged manifest and meshes compared byte for byte with an unsharded run.
+## Root on Debian 12: installs slurm-wlm and munge with apt-get when missing,
+## keeps every config, key, log and daemon in a temporary directory, stops
+## the daemons afterwards. ~15 s (+ ~10 s the first time, for apt-get).
+## Not part of `make test`. KEEP_STATE=1 keeps the directory.
+test-slurm:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal tests/slurm/run.sh
 
 ## Criterion benchmarks (release).
 bench:

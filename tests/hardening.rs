@@ -484,19 +484,69 @@ fn the_largest_seed_is_a_seed() {
 }
 
 #[test]
-fn stale_temporary_files_are_removed_on_the_next_write() {
+fn stale_temporary_files_are_reported_and_removed_only_when_asked() {
     let d = dir();
     file(d.path(), "cube.toml", "[start]\ncube = {}\n");
-    // What a `kill -9` mid-write leaves (pid 4194304 cannot exist on Linux).
-    file(d.path(), ".cube.obj.graftal-4194304-0.tmp", "partial");
-    assert_clean_exit(
-        &graftal_in(d.path(), &["run", "cube.toml", "-o", "cube.obj"]),
-        0,
+    // What a `kill -9` mid-write leaves, backdated three hours.
+    let stale = d
+        .path()
+        .join(".cube.obj.graftal-0badf00d-4194304-0123456789abcdef.tmp");
+    std::fs::write(&stale, "partial").unwrap();
+    let old = std::time::SystemTime::now() - std::time::Duration::from_secs(3 * 3600);
+    std::fs::File::options()
+        .write(true)
+        .open(&stale)
+        .unwrap()
+        .set_modified(old)
+        .unwrap();
+    // A write beside it reports it, and leaves it: its writer may be alive
+    // on another host or in another PID namespace.
+    let o = graftal_in(d.path(), &["run", "cube.toml", "-o", "cube.obj"]);
+    assert_clean_exit(&o, 0);
+    let err = stderr(&o);
+    assert!(
+        err.contains("warning: .: 1 graftal temporary file(s) older than 1 h")
+            && err.contains("graftal clean ."),
+        "{err}"
     );
-    if cfg!(target_os = "linux") {
-        // The OBJ's material library lands beside it.
-        assert_eq!(entries(d.path()), ["cube.mtl", "cube.obj", "cube.toml"]);
-    }
+    assert!(stale.exists());
+    // A run told the age removes it.
+    let o = graftal_in(
+        d.path(),
+        &[
+            "run",
+            "cube.toml",
+            "-o",
+            "cube.obj",
+            "--remove-stale-temps",
+            "2h",
+        ],
+    );
+    assert_clean_exit(&o, 0);
+    assert!(
+        stderr(&o).contains("removed 1 graftal temporary file(s) older than 2 h"),
+        "{}",
+        stderr(&o)
+    );
+    // The OBJ's material library lands beside it; nothing else is left.
+    assert_eq!(entries(d.path()), ["cube.mtl", "cube.obj", "cube.toml"]);
+    // `graftal clean` removes by age, or all of them.
+    std::fs::write(&stale, "partial").unwrap();
+    let o = graftal_in(d.path(), &["clean", ".", "--older-than", "1h"]);
+    assert_clean_exit(&o, 0);
+    assert!(stale.exists(), "a fresh file is younger than an hour");
+    let o = graftal_in(d.path(), &["clean", ".", "--dry-run"]);
+    assert_clean_exit(&o, 0);
+    assert!(stdout(&o).contains("would remove ./.cube.obj.graftal-") && stale.exists());
+    let o = graftal_in(d.path(), &["clean", "."]);
+    assert_clean_exit(&o, 0);
+    assert!(
+        stdout(&o).contains("removed ./.cube.obj.graftal-"),
+        "{}",
+        stdout(&o)
+    );
+    assert_eq!(entries(d.path()), ["cube.mtl", "cube.obj", "cube.toml"]);
+    assert_clean_exit(&graftal_in(d.path(), &["clean", "missing-dir"]), 2);
 }
 
 // ---- 10, 11, 12: every error located ----

@@ -147,6 +147,10 @@ pub struct VariantEntry {
     pub bytes: Option<u64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sha256: Option<String>,
+    /// The other files the variant wrote (an OBJ's `.mtl`, its own stats
+    /// file), checked like the output by `--resume` and `manifest check`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extra_files: Vec<FileEntry>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub counts: Option<Counts>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -156,6 +160,15 @@ pub struct VariantEntry {
     pub time_ms: Option<f64>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub steps: Vec<StepJson>,
+}
+
+/// A file a variant wrote besides its output.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct FileEntry {
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
 }
 
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -184,9 +197,16 @@ impl Manifest {
     }
 
     pub fn read(path: &Path) -> Result<Manifest, Failure> {
-        let bytes = std::fs::read(path)
-            .map_err(|e| Failure::Input(format!("cannot read {}: {e}", path.display())))?;
-        serde_json::from_slice(&bytes).map_err(|e| {
+        let text = super::files::read_json_text(path)
+            .map_err(|e| Failure::Input(format!("cannot read {}: {e}", path.display())))?
+            .ok_or_else(|| {
+                Failure::Input(format!("cannot read {}: no such file", path.display()))
+            })?;
+        Manifest::parse(path, &text)
+    }
+
+    pub fn parse(path: &Path, text: &str) -> Result<Manifest, Failure> {
+        serde_json::from_str(text).map_err(|e| {
             Failure::Input(format!(
                 "{}:{}:{}: not a graftal manifest: {e}",
                 path.display(),
@@ -194,6 +214,56 @@ impl Manifest {
                 e.column()
             ))
         })
+    }
+
+    /// Whether `other` records the same batch (tool, rule file, inputs,
+    /// batch spec, shard): its entries describe the same variants.
+    pub fn same_batch(&self, other: &Manifest) -> Option<String> {
+        let mine = serde_json::json!({
+            "graftal_version": self.graftal_version, "rules": self.rules,
+            "rule_sha256": self.rule_sha256, "inputs": self.inputs, "batch": self.batch,
+            "shard": self.shard, "variant_count": self.variant_count,
+        });
+        let theirs = serde_json::json!({
+            "graftal_version": other.graftal_version, "rules": other.rules,
+            "rule_sha256": other.rule_sha256, "inputs": other.inputs, "batch": other.batch,
+            "shard": other.shard, "variant_count": other.variant_count,
+        });
+        first_difference("", &mine, &theirs)
+    }
+}
+
+/// The first field (a dotted path) where `a` and `b` differ, shown with
+/// both values: `batch.seeds: "0..1000" vs "0..999"`.
+fn first_difference(at: &str, a: &serde_json::Value, b: &serde_json::Value) -> Option<String> {
+    use serde_json::Value;
+    let here = |key: &str| {
+        if at.is_empty() {
+            key.to_owned()
+        } else {
+            format!("{at}.{key}")
+        }
+    };
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+            keys.sort();
+            keys.dedup();
+            keys.into_iter().find_map(|k| match (x.get(k), y.get(k)) {
+                (Some(p), Some(q)) => first_difference(&here(k), p, q),
+                (p, q) => Some(format!(
+                    "{}: {} vs {}",
+                    here(k),
+                    p.map_or("absent".into(), |v| v.to_string()),
+                    q.map_or("absent".into(), |v| v.to_string())
+                )),
+            })
+        }
+        _ if a == b => None,
+        _ => Some(format!(
+            "{}: {a} vs {b}",
+            if at.is_empty() { "(document)" } else { at }
+        )),
     }
 }
 
@@ -221,42 +291,26 @@ pub fn merge(inputs: &[PathBuf]) -> Result<Manifest, Failure> {
     };
     let mut seen: Vec<Option<usize>> = vec![None; first_shard.count];
     for (k, m) in manifests.iter().enumerate() {
-        let differs = |what: &str, a: &dyn std::fmt::Debug, b: &dyn std::fmt::Debug| {
-            Failure::Input(format!(
-                "{} and {} come from different {what}: {a:?} vs {b:?}",
-                name(0),
-                name(k)
-            ))
-        };
-        if m.graftal_version != first.graftal_version {
-            return Err(differs(
-                "graftal versions",
-                &first.graftal_version,
-                &m.graftal_version,
-            ));
-        }
-        if m.rule_sha256 != first.rule_sha256 || m.rules != first.rules {
-            return Err(differs(
-                "rule files",
-                &(&first.rules, &first.rule_sha256),
-                &(&m.rules, &m.rule_sha256),
-            ));
-        }
-        if m.batch != first.batch || m.variant_count != first.variant_count {
-            return Err(differs(
-                "batches (seeds, grid, overrides, template or limits)",
-                &first.batch,
-                &m.batch,
-            ));
-        }
         let Some(shard) = m.shard else {
             return Err(Failure::Input(format!(
                 "{} is a whole batch's manifest, not a shard's",
                 name(k)
             )));
         };
-        if shard.count != first_shard.count {
-            return Err(differs("shard counts", &first_shard.count, &shard.count));
+        // Shard manifests differ in their shard index, summary and
+        // variants; everything else names the batch and must agree.
+        let identity = |m: &Manifest| Manifest {
+            shard: m.shard.map(|s| ShardSpec { index: 0, ..s }),
+            summary: Summary::default(),
+            variants: Vec::new(),
+            ..m.clone()
+        };
+        if let Some(field) = identity(first).same_batch(&identity(m)) {
+            return Err(Failure::Input(format!(
+                "{} and {} are not shards of one batch: {field}",
+                name(0),
+                name(k)
+            )));
         }
         if let Some(other) = seen[shard.index].replace(k) {
             return Err(Failure::Input(format!(
@@ -328,4 +382,82 @@ pub fn write(path: &Path, manifest: &Manifest) -> Result<(), Failure> {
     }
     super::files::write_atomic(path, &bytes)
         .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))
+}
+
+/// What `manifest check` found wrong with one variant.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Problem {
+    pub index: usize,
+    pub message: String,
+}
+
+/// Checks every file a manifest lists against its recorded size and
+/// SHA-256 (relative paths from the current directory, as the batch wrote
+/// them); with `allow_failed`, failed and not-run variants are no problem.
+/// Problems come in variant order.
+pub fn check(manifest: &Manifest, allow_failed: bool) -> Vec<Problem> {
+    use rayon::prelude::*;
+    let mut problems: Vec<Problem> = manifest
+        .variants
+        .par_iter()
+        .flat_map_iter(|v| {
+            let mut found = Vec::new();
+            let problem = |message: String| Problem {
+                index: v.index,
+                message,
+            };
+            match v.status {
+                Status::Ok => {
+                    let output = (v.output.as_str(), v.bytes, v.sha256.as_deref());
+                    let extras = v
+                        .extra_files
+                        .iter()
+                        .map(|f| (f.path.as_str(), Some(f.bytes), Some(f.sha256.as_str())));
+                    for (path, bytes, sha256) in std::iter::once(output).chain(extras) {
+                        if let Some(m) = file_problem(path, bytes, sha256) {
+                            found.push(problem(format!("{path}: {m}")));
+                        }
+                    }
+                }
+                _ if allow_failed => {}
+                Status::Failed => found.push(problem(format!(
+                    "{}: variant {} (seed {}) failed: {}",
+                    v.output,
+                    v.index,
+                    v.seed,
+                    v.error
+                        .as_ref()
+                        .map_or("no error recorded", |e| e.message.as_str())
+                ))),
+                Status::NotRun => found.push(problem(format!(
+                    "{}: variant {} (seed {}) did not run",
+                    v.output, v.index, v.seed
+                ))),
+            }
+            found
+        })
+        .collect();
+    problems.sort_by_key(|p| p.index);
+    problems
+}
+
+/// Why the file at `path` is not the one recorded, if it is not.
+pub fn file_problem(path: &str, bytes: Option<u64>, sha256: Option<&str>) -> Option<String> {
+    if path == "-" {
+        return None;
+    }
+    match super::files::size_and_sha256(Path::new(path)) {
+        Err(e) => Some(format!("cannot read: {e}")),
+        Ok(None) => Some("missing (or not a regular file)".into()),
+        Ok(Some((size, _))) if bytes.is_some_and(|b| b != size) => Some(format!(
+            "{size} bytes, the manifest records {}",
+            bytes.unwrap_or_default()
+        )),
+        Ok(Some((_, hash))) if sha256.is_some_and(|h| h != hash) => Some(format!(
+            "SHA-256 {hash}, the manifest records {}",
+            sha256.unwrap_or_default()
+        )),
+        Ok(Some(_)) if sha256.is_none() => Some("the manifest records no SHA-256".into()),
+        Ok(Some(_)) => None,
+    }
 }

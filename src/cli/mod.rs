@@ -1,11 +1,12 @@
 //! The command line, and the only code that touches files.
 //!
 //! Commands: `run` (one variant or a batch: [`batch`]), `check`, `info`,
-//! `convert`, `verify` (golden checks: [`verify`]), `manifest merge`
-//! ([`manifest`]), `lint`, `explain`, `schema`, `completions`, `man`
-//! ([`tooling`]). [`files`] reads inputs (regular files only, references
-//! confined to their directory) and writes outputs (all of a run's or none);
-//! [`stats`] renders stats and mesh reports.
+//! `convert`, `verify` (golden checks: [`verify`]), `manifest merge` and
+//! `manifest check` ([`manifest`]), `clean`, `lint`, `explain`, `schema`,
+//! `completions`, `man` ([`tooling`]). [`files`] reads inputs (regular
+//! files only, size-limited, references confined to their directory) and
+//! writes outputs (all of a run's or none), the resume journal and the
+//! cache; [`stats`] renders stats and mesh reports.
 //!
 //! Exit codes: 0 success (also when standard output is closed early); 1
 //! runtime failure (a step failed, an output could not be written, a format
@@ -57,7 +58,7 @@ pub struct Cli {
 pub enum Command {
     /// Run a rule file and write the mesh (format from OUT's extension),
     /// or a batch of variants (`--seeds`, `--grid`).
-    Run(batch::RunArgs),
+    Run(Box<batch::RunArgs>),
     /// Parse and compile a rule file, and read the files it imports,
     /// without running it.
     Check {
@@ -82,10 +83,29 @@ pub enum Command {
     /// Regenerate rule files and compare with stored goldens (stats JSON,
     /// and OBJ meshes where present); exit 1 on a difference.
     Verify(verify::VerifyArgs),
-    /// Batch manifests: `graftal manifest merge SHARD... -o OUT`.
+    /// Batch manifests: `graftal manifest merge SHARD... -o OUT`,
+    /// `graftal manifest check MANIFEST`.
     Manifest {
         #[command(subcommand)]
         action: ManifestAction,
+    },
+    /// Remove the temporary files runs that were killed left in output
+    /// folders (`.NAME.graftal-….tmp`). Only when no run writes there,
+    /// or with `--older-than`: graftal never removes another writer's
+    /// temporary files by itself.
+    Clean {
+        /// Folders to clean (searched recursively).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Only files at least this old: `30m`, `2h`, `7d`, or seconds.
+        #[arg(long, value_name = "AGE", value_parser = files::parse_age)]
+        older_than: Option<std::time::Duration>,
+        /// List what would be removed, remove nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// No list, only errors.
+        #[arg(short, long)]
+        quiet: bool,
     },
     /// Convert a mesh between formats (by extension).
     Convert {
@@ -147,6 +167,8 @@ pub enum Command {
 pub enum ManifestAction {
     /// Combine the shard manifests of one batch (`run --shard i/n`) into
     /// the manifest the unsharded batch writes, byte for byte.
+    /// Exits 1 when a variant failed or did not run (the manifest is
+    /// written all the same), unless `--allow-failed`.
     Merge {
         /// Every shard's manifest, in any order.
         #[arg(required = true)]
@@ -154,6 +176,22 @@ pub enum ManifestAction {
         /// The merged manifest (`-` or omitted: standard output).
         #[arg(short, long, value_name = "FILE")]
         output: Option<PathBuf>,
+        /// Exit 0 even when variants failed or did not run.
+        #[arg(long)]
+        allow_failed: bool,
+    },
+    /// Check that every file a manifest lists exists with its recorded
+    /// size and SHA-256 (paths from the current directory, as the batch
+    /// wrote them); names each one that does not and exits 1. Failed and
+    /// not-run variants are problems too, unless `--allow-failed`.
+    Check {
+        manifest: PathBuf,
+        /// Failed and not-run variants are no problem.
+        #[arg(long)]
+        allow_failed: bool,
+        /// No success line.
+        #[arg(short, long)]
+        quiet: bool,
     },
 }
 
@@ -344,7 +382,11 @@ pub fn main() -> ExitCode {
             return ExitCode::from(if err.use_stderr() { EXIT_INPUT } else { 0 });
         }
     };
-    match execute(cli.command) {
+    let result = execute(cli.command);
+    for notice in files::take_notices() {
+        eprintln!("warning: {notice}");
+    }
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(failure) => {
             failure.report();
@@ -426,14 +468,15 @@ fn output_format(path: &Path, ascii: bool) -> Result<io::MeshFormat, Failure> {
 
 pub fn execute(command: Command) -> Result<(), Failure> {
     match command {
-        Command::Run(args) => batch::run(args),
+        Command::Run(args) => batch::run(*args),
         Command::Verify(args) => verify::verify(args),
-        Command::Manifest {
-            action: ManifestAction::Merge { shards, output },
-        } => {
-            let merged = manifest::merge(&shards)?;
-            manifest::write(output.as_deref().unwrap_or(Path::new("-")), &merged)
-        }
+        Command::Manifest { action } => manifest_command(action),
+        Command::Clean {
+            dirs,
+            older_than,
+            dry_run,
+            quiet,
+        } => clean(&dirs, older_than, dry_run, quiet),
         Command::Check {
             rules,
             overrides,
@@ -503,6 +546,121 @@ pub fn execute(command: Command) -> Result<(), Failure> {
         Command::Completions { shell } => tooling::completions(shell),
         Command::Man { dir } => tooling::man(dir.as_deref()),
     }
+}
+
+fn manifest_command(action: ManifestAction) -> Result<(), Failure> {
+    match action {
+        ManifestAction::Merge {
+            shards,
+            output,
+            allow_failed,
+        } => {
+            let merged = manifest::merge(&shards)?;
+            manifest::write(output.as_deref().unwrap_or(Path::new("-")), &merged)?;
+            let s = merged.summary;
+            if (s.failed > 0 || s.not_run > 0) && !allow_failed {
+                let first = merged
+                    .variants
+                    .iter()
+                    .find(|v| v.status != manifest::Status::Ok)
+                    .map(|v| match &v.error {
+                        Some(e) => format!(
+                            "; the first: variant {} (seed {}): {}",
+                            v.index, v.seed, e.message
+                        ),
+                        None => format!(
+                            "; the first: variant {} (seed {}) did not run",
+                            v.index, v.seed
+                        ),
+                    })
+                    .unwrap_or_default();
+                return Err(Failure::Limit(
+                    EXIT_RUNTIME,
+                    format!(
+                        "the merged batch is incomplete: {} of {} variants failed and {} did not run{first} (the manifest was written; rerun those shards with --resume and merge again, or pass --allow-failed)",
+                        s.failed,
+                        merged.variants.len(),
+                        s.not_run
+                    ),
+                ));
+            }
+            Ok(())
+        }
+        ManifestAction::Check {
+            manifest: path,
+            allow_failed,
+            quiet,
+        } => {
+            let m = manifest::Manifest::read(&path)?;
+            let problems = manifest::check(&m, allow_failed);
+            let mut text = String::new();
+            for p in &problems {
+                text += &format!("{}\n", p.message);
+            }
+            eprint!("{text}");
+            if !problems.is_empty() {
+                return Err(Failure::Limit(
+                    EXIT_RUNTIME,
+                    format!(
+                        "{}: {} problem(s) in {} variants",
+                        path.display(),
+                        problems.len(),
+                        m.variants.len()
+                    ),
+                ));
+            }
+            if !quiet {
+                let files: usize = m
+                    .variants
+                    .iter()
+                    .filter(|v| v.status == manifest::Status::Ok)
+                    .map(|v| 1 + v.extra_files.len())
+                    .sum();
+                eprintln!(
+                    "{}: {files} files of {} variants match their sizes and SHA-256",
+                    path.display(),
+                    m.variants.len()
+                );
+            }
+            Ok(())
+        }
+    }
+}
+
+/// `graftal clean`: removes graftal temporary files under `dirs`.
+fn clean(
+    dirs: &[PathBuf],
+    older_than: Option<std::time::Duration>,
+    dry_run: bool,
+    quiet: bool,
+) -> Result<(), Failure> {
+    let mut failed = 0;
+    for dir in dirs {
+        let cleaned = files::clean(dir, older_than, dry_run)
+            .map_err(|e| Failure::Input(format!("{}: {e}", dir.display())))?;
+        if !quiet {
+            let verb = if dry_run { "would remove" } else { "removed" };
+            let mut text = String::new();
+            for t in &cleaned.removed {
+                text += &format!(
+                    "{verb} {} ({} old)\n",
+                    t.path.display(),
+                    files::describe_age(t.age)
+                );
+            }
+            write_stdout(text.as_bytes())?;
+        }
+        for (path, e) in &cleaned.failed {
+            eprintln!("error: cannot remove {}: {e}", path.display());
+        }
+        failed += cleaned.failed.len();
+    }
+    if failed > 0 {
+        return Err(Failure::Runtime(format!(
+            "{failed} temporary file(s) could not be removed"
+        )));
+    }
+    Ok(())
 }
 
 /// The exit code of a failed run: 1, or the code of the limit it hit.

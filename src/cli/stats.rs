@@ -363,16 +363,6 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
-/// A batch's NDJSON stats line: which variant, then its stats document.
-#[derive(Serialize)]
-pub struct VariantLine<'a> {
-    pub index: usize,
-    pub output: &'a str,
-    pub sha256: &'a str,
-    #[serde(flatten)]
-    pub stats: RunJson<'a>,
-}
-
 /// The `--stats` document of a run, to serialize.
 pub fn run_stats_doc<'a>(
     program: &'a Program,

@@ -1,5 +1,8 @@
 //! `graftal verify --golden DIR RULES...`: regenerate and compare with
-//! stored goldens; `--bless` rewrites them.
+//! stored goldens; `--bless` rewrites them. For CI: `--junit FILE` writes
+//! one JUnit testcase per rule file and seed (the differences as the
+//! failure), `--diff-dir DIR` a picture per changed variant (golden | new |
+//! where they differ, drawn by the preview renderer with one camera).
 //!
 //! Each variant has a stats golden `<stem>.json` (`<stem>-<seed>.json`
 //! with `--seeds`), always compared, and optionally a mesh golden
@@ -54,6 +57,17 @@ pub struct VerifyArgs {
     /// No success line.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Also write a JUnit XML report (one testcase per rule file and
+    /// seed), which CI systems show as test results.
+    #[arg(long, value_name = "FILE", conflicts_with = "bless")]
+    pub junit: Option<PathBuf>,
+    /// Also write, for each variant that differs, `DIR/<stem>.png`: the
+    /// golden mesh, the new one and where their pictures differ.
+    #[arg(long, value_name = "DIR", conflicts_with = "bless")]
+    pub diff_dir: Option<PathBuf>,
+    /// Side of each of the three panels of a `--diff-dir` picture.
+    #[arg(long, default_value_t = 256, value_name = "PIXELS", value_parser = clap::value_parser!(u32).range(32..=1024))]
+    pub diff_size: u32,
     #[command(flatten)]
     pub input: super::InputArgs,
 }
@@ -63,6 +77,15 @@ struct Fresh {
     stem: String,
     stats: String,
     obj: Vec<u8>,
+}
+
+/// One compared variant, for the reports.
+struct Case {
+    /// The rule file as given.
+    rules: String,
+    seed: Option<u64>,
+    stem: String,
+    differences: Vec<String>,
 }
 
 pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
@@ -99,7 +122,9 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
     let mut mismatched = 0;
     let mut checked = 0;
     let mut blessed = 0;
-    for ((stem, _), program) in stems.iter().zip(&programs) {
+    let mut cases: Vec<Case> = Vec::new();
+    let mut pictures: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    for ((stem, rules_path), program) in stems.iter().zip(&programs) {
         let inputs = super::files::load_inputs(program, args.input.policy())?;
         let seeds: Vec<Option<u64>> = match &args.seeds {
             Some(set) => set.seeds.iter().map(|&s| Some(s)).collect(),
@@ -125,9 +150,21 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
             checked += 1;
             let mut differences = Vec::new();
             compare_stats(&json_path, &fresh.stats, &args, &mut differences)?;
-            if obj_path.exists() {
-                compare_obj(&obj_path, &fresh.obj, &args, &mut differences)?;
+            let golden_obj = read_golden(&obj_path)?;
+            if let Some(bytes) = &golden_obj {
+                compare_obj(&obj_path, bytes, &fresh.obj, &args, &mut differences)?;
             }
+            if let (Some(dir), false) = (&args.diff_dir, differences.is_empty()) {
+                let png =
+                    diff_picture(golden_obj.as_deref(), &obj_path, &fresh.obj, args.diff_size)?;
+                pictures.push((dir.join(format!("{}.png", fresh.stem)), png));
+            }
+            cases.push(Case {
+                rules: rules_path.display().to_string(),
+                seed: seed.filter(|_| args.seeds.is_some()),
+                stem: fresh.stem.clone(),
+                differences: differences.clone(),
+            });
             if !differences.is_empty() {
                 mismatched += 1;
                 for d in differences.iter().take(SHOWN_DIFFERENCES) {
@@ -153,6 +190,28 @@ pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
         return Ok(());
     }
     eprint!("{report}");
+    if let Some(path) = &args.junit {
+        write(path, junit_xml(&cases, &args.golden).as_bytes())?;
+    }
+    if let Some(dir) = &args.diff_dir {
+        // Every picture, or none: a half-written folder would mislead.
+        let mut staged = super::files::Staged::new();
+        for (path, png) in &pictures {
+            staged
+                .stage(path, png)
+                .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))?;
+        }
+        staged.commit().map_err(|(path, e)| {
+            Failure::Runtime(format!("cannot write {}: {e}", path.display()))
+        })?;
+        if !args.quiet && !pictures.is_empty() {
+            eprintln!(
+                "{} difference pictures in {}",
+                pictures.len(),
+                dir.display()
+            );
+        }
+    }
     if mismatched > 0 {
         return Err(Failure::Limit(
             EXIT_RUNTIME,
@@ -215,9 +274,9 @@ fn compare_stats(
     args: &VerifyArgs,
     out: &mut Vec<String>,
 ) -> Result<(), Failure> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+    let text = match super::files::read_json_text(path) {
+        Ok(Some(text)) => text,
+        Ok(None) => {
             out.push(format!(
                 "{}: missing golden (run with --bless to create it)",
                 path.display()
@@ -314,15 +373,26 @@ impl JsonWalk<'_> {
     }
 }
 
+/// The golden mesh at `path`, if there is one.
+fn read_golden(path: &Path) -> Result<Option<Vec<u8>>, Failure> {
+    match super::files::read_input(path, super::files::MAX_MESH_BYTES) {
+        Ok(bytes) => Ok(Some(bytes)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(Failure::Input(format!(
+            "cannot read {}: {e}",
+            path.display()
+        ))),
+    }
+}
+
 fn compare_obj(
     path: &Path,
+    bytes: &[u8],
     fresh: &[u8],
     args: &VerifyArgs,
     out: &mut Vec<String>,
 ) -> Result<(), Failure> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| Failure::Input(format!("cannot read {}: {e}", path.display())))?;
-    let expected = io::obj::decode(&bytes, path).map_err(|e| Failure::Input(e.to_string()))?;
+    let expected = io::obj::decode(bytes, path).map_err(|e| Failure::Input(e.to_string()))?;
     let got = io::obj::decode(fresh, path).expect("fresh OBJ decodes");
     let file = path.display();
     let counts = |m: &IndexedMesh| [m.positions.len(), m.polygon_count(), m.lines.len()];
@@ -391,4 +461,164 @@ fn compare_obj(
         }
     }
     Ok(())
+}
+
+/// A JUnit XML report: a testsuite per rule file, a testcase per seed,
+/// the differences as the failure's text. No times, so the same results
+/// give the same bytes.
+fn junit_xml(cases: &[Case], golden: &Path) -> String {
+    let failures = cases.iter().filter(|c| !c.differences.is_empty()).count();
+    let mut xml = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    xml += &format!(
+        "<testsuites name=\"graftal verify\" tests=\"{}\" failures=\"{failures}\" errors=\"0\">\n",
+        cases.len()
+    );
+    let mut start = 0;
+    while start < cases.len() {
+        let rules = &cases[start].rules;
+        let end = start
+            + cases[start..]
+                .iter()
+                .take_while(|c| &c.rules == rules)
+                .count();
+        let suite = &cases[start..end];
+        let failed = suite.iter().filter(|c| !c.differences.is_empty()).count();
+        xml += &format!(
+            "  <testsuite name=\"{}\" tests=\"{}\" failures=\"{failed}\" errors=\"0\">\n",
+            xml_escape(rules),
+            suite.len()
+        );
+        for case in suite {
+            let name = match case.seed {
+                Some(seed) => format!("seed {seed}"),
+                None => "default seed".to_owned(),
+            };
+            let open = format!(
+                "    <testcase classname=\"{}\" name=\"{}\" file=\"{}\"",
+                xml_escape(rules),
+                xml_escape(&name),
+                xml_escape(rules)
+            );
+            if case.differences.is_empty() {
+                xml += &format!("{open}/>\n");
+            } else {
+                let message = format!(
+                    "{} difference(s) from the goldens {}",
+                    case.differences.len(),
+                    golden.join(format!("{}.*", case.stem)).display()
+                );
+                xml += &format!(
+                    "{open}>\n      <failure type=\"golden mismatch\" message=\"{}\">{}</failure>\n    </testcase>\n",
+                    xml_escape(&message),
+                    xml_escape(&case.differences.join("\n"))
+                );
+            }
+        }
+        xml += "  </testsuite>\n";
+        start = end;
+    }
+    xml += "</testsuites>\n";
+    xml
+}
+
+/// Text safe in XML content and attribute values; characters XML 1.0
+/// cannot hold at all become U+FFFD.
+fn xml_escape(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&apos;"),
+            '\n' => out.push_str("&#10;"),
+            '\t' | '\r' => out.push(c),
+            c if (c as u32) < 0x20 || c == '\u{FFFE}' || c == '\u{FFFF}' => out.push('\u{FFFD}'),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// The picture of one changed variant: the golden mesh, the new one (one
+/// camera framing both) and their pictures' difference, side by side.
+fn diff_picture(
+    golden: Option<&[u8]>,
+    golden_path: &Path,
+    fresh: &[u8],
+    size: u32,
+) -> Result<Vec<u8>, Failure> {
+    use crate::preview::{self, Image};
+    let decode = |bytes: &[u8]| {
+        io::obj::decode(bytes, golden_path).map_err(|e| Failure::Input(e.to_string()))
+    };
+    let new = decode(fresh)?;
+    let old = golden.map(decode).transpose()?;
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in new
+        .positions
+        .iter()
+        .chain(old.iter().flat_map(|m| m.positions.iter()))
+    {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let finite = lo.iter().chain(&hi).all(|x| x.is_finite());
+    let options = preview::Options {
+        width: size,
+        height: size,
+        edges: true,
+        frame: finite.then_some([lo, hi]),
+        ..preview::Options::default()
+    };
+    let draw = |m: &IndexedMesh| {
+        super::preview::render(m, &options)
+            .map_err(|e| Failure::Runtime(format!("diff picture: {e}")))
+    };
+    let blank = Image {
+        width: size,
+        height: size,
+        rgba: [255u8, 255, 255, 255].repeat(size as usize * size as usize),
+    };
+    let new_image = draw(&new)?;
+    let (old_image, old_label) = match &old {
+        Some(m) => (draw(m)?, "golden"),
+        None => (blank.clone(), "golden: no mesh"),
+    };
+    // Where the two pictures differ: magenta over a faded copy of the new.
+    let mut changed = 0usize;
+    let mut delta = new_image.clone();
+    for (k, px) in delta.rgba.chunks_exact_mut(4).enumerate() {
+        let differs =
+            old.is_some() && old_image.rgba[4 * k..4 * k + 4] != new_image.rgba[4 * k..4 * k + 4];
+        if differs {
+            changed += 1;
+            px.copy_from_slice(&[255, 0, 255, 255]);
+        } else {
+            for c in &mut px[..3] {
+                *c = 255 - (255 - *c) / 4;
+            }
+        }
+    }
+    let delta_label = if old.is_none() {
+        "difference: no golden mesh".to_owned()
+    } else if changed == 0 {
+        "difference: none visible".to_owned()
+    } else {
+        format!("difference: {changed} px")
+    };
+    let sheet = preview::contact_sheet(
+        &[
+            (old_image, old_label.to_owned()),
+            (new_image, "new".to_owned()),
+            (delta, delta_label),
+        ],
+        3,
+    )
+    .map_err(|e| Failure::Runtime(format!("diff picture: {e}")))?;
+    preview::encode_png(&sheet).map_err(|e| Failure::Runtime(e.to_string()))
 }

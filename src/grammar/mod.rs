@@ -10,6 +10,8 @@
 //!   against the model before an application is made.
 //! - [`scope`]: compound-command scopes and their reference frames.
 //! - [`properties`]: what conditions and parameters read.
+//! - [`lineage`]: the key each primitive's random draws are keyed by —
+//!   derived from the step that made it and its parent, not its id.
 //! - `fields`: the signed distance operators (`sdf`, `sdf_part`,
 //!   `sdf_boolean`, the field `skin`) and [`Input`], the files a run reads
 //!   with their distance fields built once per batch.
@@ -24,6 +26,7 @@ mod error;
 mod fields;
 pub mod graph;
 pub mod intersect;
+pub mod lineage;
 pub mod merge;
 mod operators;
 mod properties;

@@ -62,7 +62,15 @@ pub fn property(ctx: &Context, domain: Domain, index: usize, property: Property)
     let mesh = ctx.mesh;
     match property {
         Id => return index as f64,
-        Random => return random::unit(ctx.seed, ctx.stream, index as u64, 0),
+        // Keyed by lineage, not id: see `lineage`.
+        Random => {
+            return random::unit(
+                ctx.seed,
+                ctx.stream,
+                super::lineage::key(mesh, domain, index),
+                0,
+            )
+        }
         Age => return graph::age(mesh, domain, index) as f64,
         Generation => return f64::from(ctx.generation),
         _ => {}

@@ -31,6 +31,7 @@ use crate::rules::random;
 
 use super::commands::{self, CommandError, Fan, Plan};
 use super::graph::{self, Frame};
+use super::lineage;
 use super::properties::{self, Context};
 use super::scope::{Measure, Reference, Scope};
 
@@ -206,6 +207,9 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
     }
     if program.tags_looks {
         super::asset::ensure_layers(&mut mesh);
+    }
+    if program.draws_per_primitive {
+        lineage::ensure_layers(&mut mesh);
     }
     runner
         .run_steps(&mut mesh, &program.steps, true)
@@ -515,6 +519,11 @@ impl Runner<'_> {
             if let Ok(made) = &products {
                 super::asset::tag(mesh, made, looks);
             }
+        }
+        if let (true, Op::Call(_), Ok(made)) =
+            (self.program.draws_per_primitive, &step.op, &products)
+        {
+            lineage::assign_derived(mesh, step.key, made);
         }
         let made = match products {
             Ok(made) => made,
@@ -901,13 +910,14 @@ impl Runner<'_> {
                         },
                     )));
                 }
-                if random::unit(self.seed, step.key, i as u64, 0) >= p {
+                if random::unit(self.seed, step.key, lineage::key(mesh, step.domain, i), 0) >= p {
                     tally.skipped += 1;
                     continue;
                 }
             }
             let (seed, key) = (self.seed, step.key);
-            let spread = |draw: u64| 2.0 * random::unit(seed, key, i as u64, draw) - 1.0;
+            let id = lineage::key(mesh, step.domain, i);
+            let spread = |draw: u64| 2.0 * random::unit(seed, key, id, draw) - 1.0;
             let (plan, up) = {
                 let mut eval = |c: &Condition| self.eval(mesh, step, generation, i, step.domain, c);
                 commands::plan(mesh, command, i, &reference, &mut eval, &spread)
@@ -986,8 +996,12 @@ impl Runner<'_> {
                     }
                 }
             }
+            let parent = lineage::key(mesh, step.domain, plan.target());
             let products = commands::apply(mesh, command.kind, plan, fan, generation)
                 .map_err(|e| fail(plan.target(), e))?;
+            if self.program.draws_per_primitive {
+                lineage::assign_children(mesh, step.key, parent, &products);
+            }
             if testing {
                 self.guard.accept(mesh, &products);
             }

@@ -1,8 +1,9 @@
 //! Named per-element attribute layers.
 //!
 //! A layer holds one value per arena slot of its domain (vertex, edge or
-//! face): scalars (`f64`), vectors (`DVec3`) or integers (`i32`). Later
-//! stages keep node radius, turtle frame, age, part and material here.
+//! face): scalars (`f64`), vectors (`DVec3`), integers (`i32`) or opaque
+//! 64-bit keys. Later stages keep node radius, turtle frame, age, part,
+//! material and the random-stream lineage here.
 //! Layers are kept sorted by (domain, name) so iteration order, and
 //! therefore output, is deterministic.
 //!
@@ -27,6 +28,7 @@ pub enum LayerData {
     Scalar(Vec<f64>),
     Vector(Vec<DVec3>),
     Int(Vec<i32>),
+    Key(Vec<u64>),
 }
 
 /// The kind of value a layer stores.
@@ -35,6 +37,8 @@ pub enum LayerKind {
     Scalar,
     Vector,
     Int,
+    /// An opaque 64-bit value: copied, never blended.
+    Key,
 }
 
 /// A single attribute value.
@@ -43,6 +47,7 @@ pub enum AttrValue {
     Scalar(f64),
     Vector(DVec3),
     Int(i32),
+    Key(u64),
 }
 
 impl AttrValue {
@@ -51,6 +56,7 @@ impl AttrValue {
             AttrValue::Scalar(_) => LayerKind::Scalar,
             AttrValue::Vector(_) => LayerKind::Vector,
             AttrValue::Int(_) => LayerKind::Int,
+            AttrValue::Key(_) => LayerKind::Key,
         }
     }
 
@@ -63,6 +69,7 @@ impl AttrValue {
                 a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)
             }
             (AttrValue::Int(a), AttrValue::Int(b)) => a == b,
+            (AttrValue::Key(a), AttrValue::Key(b)) => a == b,
             _ => false,
         }
     }
@@ -93,6 +100,7 @@ impl Layer {
             AttrValue::Scalar(_) => LayerData::Scalar(Vec::new()),
             AttrValue::Vector(_) => LayerData::Vector(Vec::new()),
             AttrValue::Int(_) => LayerData::Int(Vec::new()),
+            AttrValue::Key(_) => LayerData::Key(Vec::new()),
         };
         Self {
             name: name.to_owned(),
@@ -113,6 +121,7 @@ impl Layer {
             LayerData::Scalar(v) => v.len(),
             LayerData::Vector(v) => v.len(),
             LayerData::Int(v) => v.len(),
+            LayerData::Key(v) => v.len(),
         }
     }
 
@@ -127,6 +136,7 @@ impl Layer {
             LayerData::Scalar(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Scalar(x)),
             LayerData::Vector(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Vector(x)),
             LayerData::Int(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Int(x)),
+            LayerData::Key(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Key(x)),
         }
     }
 
@@ -144,6 +154,7 @@ impl Layer {
             (LayerData::Scalar(v), AttrValue::Scalar(d)) => v.resize(len, d),
             (LayerData::Vector(v), AttrValue::Vector(d)) => v.resize(len, d),
             (LayerData::Int(v), AttrValue::Int(d)) => v.resize(len, d),
+            (LayerData::Key(v), AttrValue::Key(d)) => v.resize(len, d),
             _ => unreachable!("layer data and default always share a kind"),
         }
     }
@@ -161,7 +172,7 @@ impl Layer {
         self.store(to, value);
     }
 
-    /// Linear blend; integers take the value of the nearer end.
+    /// Linear blend; integers and keys take the value of the nearer end.
     fn interpolate(&mut self, a: usize, b: usize, t: f64, to: usize) {
         let value = match (self.get(a), self.get(b)) {
             (AttrValue::Scalar(x), AttrValue::Scalar(y)) => AttrValue::Scalar(x + (y - x) * t),
@@ -202,6 +213,7 @@ impl Layer {
             (LayerData::Scalar(v), AttrValue::Scalar(x)) => v[slot] = x,
             (LayerData::Vector(v), AttrValue::Vector(x)) => v[slot] = x,
             (LayerData::Int(v), AttrValue::Int(x)) => v[slot] = x,
+            (LayerData::Key(v), AttrValue::Key(x)) => v[slot] = x,
             _ => unreachable!("layer data and value share a kind (checked by the caller)"),
         }
     }

@@ -115,7 +115,7 @@ pub enum Projection {
 }
 
 /// Render settings.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Options {
     /// Image width in pixels, 1..=[`MAX_DIMENSION`].
     pub width: u32,
@@ -130,6 +130,10 @@ pub struct Options {
     /// Draw [`Scene::lines`]. The lines count for framing either way, so
     /// toggling this never moves the camera.
     pub edges: bool,
+    /// The box (min, max corners) the camera frames instead of the
+    /// scene's own bounds: pictures of two meshes framed by one box line
+    /// up pixel for pixel (`verify --diff-dir`). Must be finite.
+    pub frame: Option<[[f64; 3]; 2]>,
 }
 
 impl Default for Options {
@@ -142,6 +146,7 @@ impl Default for Options {
             projection: Projection::Orthographic,
             background: [222, 228, 236],
             edges: false,
+            frame: None,
         }
     }
 }
@@ -237,6 +242,8 @@ pub enum PreviewError {
     },
     /// Contact sheet asked for with no tiles or zero columns.
     EmptySheet,
+    /// [`Options::frame`] has a NaN or infinite corner.
+    BadFrame,
     /// The PNG encoder failed (not expected when writing to memory).
     Png(String),
 }
@@ -252,6 +259,7 @@ impl fmt::Display for PreviewError {
             PreviewError::NonFinite { vertex } => {
                 write!(f, "vertex {vertex} has a non-finite coordinate")
             }
+            PreviewError::BadFrame => write!(f, "the frame box has a non-finite corner"),
             PreviewError::BadIndex {
                 primitive,
                 element,

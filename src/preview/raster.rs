@@ -51,9 +51,16 @@ pub fn render(scene: &Scene, options: &Options) -> Result<Image, PreviewError> {
         height: options.height,
         rgba,
     };
-    let Some(bounds) = bounds else {
+    let Some(mut bounds) = bounds else {
         return Ok(image);
     };
+    if let Some([lo, hi]) = options.frame {
+        let (lo, hi) = (DVec3::from_array(lo), DVec3::from_array(hi));
+        if !(lo.is_finite() && hi.is_finite()) {
+            return Err(PreviewError::BadFrame);
+        }
+        bounds = (lo.min(hi), lo.max(hi));
+    }
 
     let norm = Normaliser::new(bounds);
     let camera = Camera::frame(

@@ -44,6 +44,10 @@ pub struct Program {
     /// Whether any step may cancel a compound or a rule application, so
     /// the engine keeps snapshots to roll back to.
     pub may_cancel: bool,
+    /// Whether anything draws per primitive (`random` in an expression,
+    /// a command's `probability` or `vary_*`): the engine then keeps each
+    /// primitive's lineage key, which those draws are keyed by.
+    pub draws_per_primitive: bool,
     /// Every file the program needs, each once, in first-use order: the
     /// caller reads them before the run (the engine does no I/O) and hands
     /// them over by index ([`Op::Import`]'s `resource`).
@@ -222,6 +226,22 @@ pub struct Command {
     pub nodes: Option<Condition>,
 }
 
+impl Command {
+    /// Whether the command draws random values per primitive.
+    pub fn draws(&self) -> bool {
+        self.probability.is_some()
+            || [
+                &self.vary_length,
+                &self.vary_radius,
+                &self.vary_turn,
+                &self.vary_pitch,
+                &self.vary_roll,
+            ]
+            .iter()
+            .any(|v| v.is_some())
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Param {
     pub name: String,
@@ -320,7 +340,8 @@ pub struct Step {
     pub uid: u32,
     /// Full path: rule and compound names, repeat counts, the step's name.
     pub name: String,
-    /// Random stream key (`step/NAME`).
+    /// Random stream key: `step/` and the step's key path, whose last part
+    /// is its name or, unnamed, a hash of its content (`compile::step_key`).
     pub key: u64,
     /// Uids of the earlier step whose created elements are the candidates
     /// (every copy of a repeated step).

@@ -23,6 +23,7 @@ use super::random::stream_key;
 mod look;
 mod nurbs;
 mod sdf;
+mod step_key;
 use super::spanned::{SourceFormat, Spanned};
 pub use nurbs::SURFACE_KEYS;
 pub use sdf::{tree_limits, MAX_TREE_DEPTH};
@@ -192,6 +193,8 @@ struct Compiler<'a> {
     trees: std::cell::RefCell<sdf::TreeState>,
     /// The file's `[nurbs.NAME]` tables.
     nurbs_defs: &'a ast::Named<Spanned<ast::Args>>,
+    /// Whether an expression reads `random` (see [`Program::draws_per_primitive`]).
+    reads_random: std::cell::Cell<bool>,
 }
 
 impl<'a> Compiler<'a> {
@@ -354,6 +357,12 @@ impl<'a> Compiler<'a> {
                 None => properties,
             })
         })?;
+        if expr
+            .used_slots()
+            .contains(&(base + property_index(Property::Random)))
+        {
+            self.reads_random.set(true);
+        }
         Ok(Condition { expr })
     }
 }
@@ -484,6 +493,7 @@ pub fn compile(
         sdf_defs: &ast.sdf,
         trees: std::default::Default::default(),
         nurbs_defs: &ast.nurbs,
+        reads_random: std::cell::Cell::new(false),
     };
 
     // Slots are assigned in name order: TOML does not keep table order, and
@@ -558,6 +568,7 @@ pub fn compile(
                     sdf_defs: &no_trees,
                     trees: std::default::Default::default(),
                     nurbs_defs: &no_trees,
+                    reads_random: std::cell::Cell::new(false),
                 };
                 let expr = c.param_expr(&o.value, Some(0..o.value.len()))?;
                 (ParamKind::Expr(expr), None)
@@ -640,9 +651,14 @@ pub fn compile(
                 "`[start]` takes one create operator, not `rule`, `compound` or `repeat`",
             ));
         }
-        expander.expand(std::slice::from_ref(start), "", &mut steps, Some("start"))?;
+        expander.expand(
+            std::slice::from_ref(start),
+            Paths::ROOT,
+            &mut steps,
+            Some("start"),
+        )?;
     }
-    expander.expand(&ast.steps, "", &mut steps, None)?;
+    expander.expand(&ast.steps, Paths::ROOT, &mut steps, None)?;
     let uses_graph = expander.uses_graph;
     let may_cancel = expander.may_cancel;
     let tags_looks = expander.tags_looks;
@@ -691,6 +707,16 @@ pub fn compile(
     for o in overrides {
         hash_input.push_str(&format!("\n--set {}={}", o.name, o.value));
     }
+    // Per-primitive draws key on lineage, which the engine keeps only
+    // for programs that draw.
+    let command_draws = |steps: &[Step]| {
+        steps
+            .iter()
+            .any(|s| matches!(&s.op, Op::Command(c) if c.draws()))
+    };
+    let draws_per_primitive = compiler.reads_random.get()
+        || command_draws(&steps)
+        || compounds.iter().any(|c| command_draws(&c.steps));
     Ok(Program {
         file: file.name.clone(),
         base_dir: base_dir.to_path_buf(),
@@ -710,6 +736,7 @@ pub fn compile(
         nurbs: surfaces,
         look: expander_look,
         tags_looks,
+        draws_per_primitive,
     })
 }
 
@@ -1016,6 +1043,21 @@ fn unrolled(
     total
 }
 
+/// A step's two paths: the one it is shown by (`grow#2/step1`) and the one
+/// its random stream is named by (`grow#2/~3f…`, see [`step_key`]).
+#[derive(Clone, Copy)]
+struct Paths<'a> {
+    display: &'a str,
+    key: &'a str,
+}
+
+impl Paths<'_> {
+    const ROOT: Paths<'static> = Paths {
+        display: "",
+        key: "",
+    };
+}
+
 /// Turns lists of AST steps into program steps: includes rules, unrolls
 /// repeats, compiles compounds once, numbers every step (its uid) in
 /// program order and names it by its path.
@@ -1058,12 +1100,12 @@ pub const MAX_NESTING: usize = 64;
 const MAX_STEPS: u32 = 1_000_000;
 
 impl Expander<'_, '_> {
-    /// Expands `steps` into `out`. `prefix` is prepended to every path;
-    /// `forced_name` names a lone step (the start).
+    /// Expands `steps` into `out`. `prefix`'s paths are prepended to
+    /// every step's; `forced_name` names a lone step (the start).
     fn expand(
         &mut self,
         steps: &[ast::Step],
-        prefix: &str,
+        prefix: Paths<'_>,
         out: &mut Vec<Step>,
         forced_name: Option<&str>,
     ) -> Result<(), RuleError> {
@@ -1071,6 +1113,8 @@ impl Expander<'_, '_> {
         // Local step names → uids of their copies, for `from`.
         let mut local: Vec<(String, Vec<u32>)> = Vec::new();
         let mut explicit: Vec<&str> = Vec::new();
+        // Key names given so far in this list, to tell siblings apart.
+        let mut key_names: Vec<String> = Vec::new();
         for (i, step) in steps.iter().enumerate() {
             check_stray_keys(c, step)?;
             let name = match (&step.name, forced_name, &step.rule) {
@@ -1092,6 +1136,19 @@ impl Expander<'_, '_> {
                 (None, None, Some(rule)) => rule.value.clone(),
                 (None, None, None) => format!("step{}", i + 1),
             };
+            // The random stream's name: the step's name, or for an unnamed
+            // operator step its content (issue 33: not its position). Two
+            // siblings with one key name are told apart by occurrence.
+            let key_name = match (&step.name, forced_name, &step.rule) {
+                (None, None, None) => step_key::content_name(step),
+                _ => name.clone(),
+            };
+            let earlier = key_names.iter().filter(|k| **k == key_name).count();
+            key_names.push(key_name.clone());
+            let key_name = match earlier {
+                0 => key_name,
+                n => format!("{key_name}.{}", n + 1),
+            };
             let repeat = match &step.repeat {
                 None => 1,
                 Some(r) => {
@@ -1106,13 +1163,26 @@ impl Expander<'_, '_> {
             };
             let mut copies = Vec::new();
             for k in 0..repeat {
-                let path = if repeat > 1 {
-                    format!("{prefix}{name}#{}", k + 1)
-                } else {
-                    format!("{prefix}{name}")
+                let copy = |base: &str| {
+                    if repeat > 1 {
+                        format!("{base}#{}", k + 1)
+                    } else {
+                        base.to_owned()
+                    }
                 };
+                let path = format!("{}{}", prefix.display, copy(&name));
+                let key_path = format!("{}{}", prefix.key, copy(&key_name));
                 if let Some(rule) = &step.rule {
-                    self.include_rule(step, rule, &format!("{path}/"), out)?;
+                    let (display, key) = (format!("{path}/"), format!("{key_path}/"));
+                    self.include_rule(
+                        step,
+                        rule,
+                        Paths {
+                            display: &display,
+                            key: &key,
+                        },
+                        out,
+                    )?;
                 } else {
                     if self.next_uid >= MAX_STEPS {
                         return Err(c.error(
@@ -1122,7 +1192,7 @@ impl Expander<'_, '_> {
                     }
                     let uid = self.next_uid;
                     self.next_uid += 1;
-                    let compiled = self.compile_step(step, uid, &path, &local)?;
+                    let compiled = self.compile_step(step, uid, &path, &key_path, &local)?;
                     out.push(compiled);
                     copies.push(uid);
                 }
@@ -1139,7 +1209,7 @@ impl Expander<'_, '_> {
         &mut self,
         step: &ast::Step,
         rule: &Spanned<String>,
-        prefix: &str,
+        prefix: Paths<'_>,
         out: &mut Vec<Step>,
     ) -> Result<(), RuleError> {
         let c = self.c;
@@ -1250,7 +1320,12 @@ impl Expander<'_, '_> {
         self.compound_stack.push(index);
         let outer_rules = std::mem::take(&mut self.rule_instances);
         let mut steps = Vec::new();
-        let result = self.expand(&def.steps, &format!("{}/", name.value), &mut steps, None);
+        let prefix = format!("{}/", name.value);
+        let paths = Paths {
+            display: &prefix,
+            key: &prefix,
+        };
+        let result = self.expand(&def.steps, paths, &mut steps, None);
         self.compound_stack.pop();
         self.rule_instances = outer_rules;
         result?;
@@ -1341,6 +1416,7 @@ impl Expander<'_, '_> {
         step: &ast::Step,
         uid: u32,
         path: &str,
+        key_path: &str,
         earlier: &[(String, Vec<u32>)],
     ) -> Result<Step, RuleError> {
         let c = self.c;
@@ -1376,7 +1452,7 @@ impl Expander<'_, '_> {
         let on_intersection = self.step_on_intersection(step, &body.op)?;
         Ok(Step {
             uid,
-            key: stream_key(&format!("step/{path}")),
+            key: stream_key(&format!("step/{key_path}")),
             name: path.to_owned(),
             from,
             on_intersection,
