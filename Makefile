@@ -59,7 +59,7 @@ contact-sheet:
 ## Root on Debian 12: installs slurm-wlm and munge with apt-get when missing,
 ## keeps every config, key, log and daemon in a temporary directory, stops
 ## the daemons afterwards. ~15 s (+ ~10 s the first time, for apt-get).
-## Not part of `make test`. KEEP_STATE=1 keeps the directory.
+## Not part of `make test`; CI (`.ci/run`) runs it after. KEEP_STATE=1 keeps the directory.
 test-slurm:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal tests/slurm/run.sh

@@ -64,6 +64,8 @@ pub(super) struct Done {
 /// keeps and restores.
 struct Artifacts {
     mesh: Vec<u8>,
+    /// The mesh's SHA-256 once something computed it (it is hashed once).
+    mesh_sha256: Option<String>,
     /// Files beside the mesh by extension (an OBJ's `mtl`).
     companions: Vec<(String, Vec<u8>)>,
     stats: Option<String>,
@@ -347,21 +349,27 @@ fn produce(plan: &Plan, v: &Variant) -> Produced {
             });
         }
     };
+    let mut artifacts = artifacts;
     if let (Some(cache), Some(key)) = (&plan.cache, &v.cache_key) {
-        let mut roles: Vec<(String, &[u8])> = vec![(MESH_ROLE.into(), &artifacts.mesh)];
+        let sha = files::hex(&Sha256::digest(&artifacts.mesh));
+        let mut roles: Vec<(String, &[u8], Option<&str>)> =
+            vec![(MESH_ROLE.into(), &artifacts.mesh, Some(&sha))];
         for (ext, bytes) in &artifacts.companions {
-            roles.push((format!("{COMPANION_PREFIX}{ext}"), bytes));
+            roles.push((format!("{COMPANION_PREFIX}{ext}"), bytes, None));
         }
         if let Some(doc) = &artifacts.stats {
-            roles.push((STATS_ROLE.into(), doc.as_bytes()));
+            roles.push((STATS_ROLE.into(), doc.as_bytes(), None));
         }
         if let Some(image) = &artifacts.thumbnail {
-            roles.push((thumbnail_role(image.width), &image.rgba));
+            roles.push((thumbnail_role(image.width), &image.rgba, None));
         }
-        let roles: Vec<(&str, &[u8])> = roles.iter().map(|(r, b)| (r.as_str(), *b)).collect();
+        let roles: Vec<(&str, &[u8], Option<&str>)> =
+            roles.iter().map(|(r, b, h)| (r.as_str(), *b, *h)).collect();
         let record = serde_json::to_value(&artifacts.record).expect("record serializes");
         // A cache that cannot be written never fails the batch.
-        if let Err(e) = cache.store(key, &roles, record) {
+        let stored = cache.store(key, &roles, record);
+        artifacts.mesh_sha256 = Some(sha);
+        if let Err(e) = stored {
             let mut p = land(plan, v, artifacts, Source::Made);
             p.warnings
                 .push(format!("--cache: cannot store variant {}: {e}", v.index));
@@ -423,11 +431,13 @@ fn restore(plan: &Plan, v: &Variant) -> Option<Artifacts> {
     let record: Record = serde_json::from_value(hit.record.clone()).ok()?;
     let mut companions = Vec::new();
     let mut mesh = Vec::new();
+    let mut mesh_sha256 = None;
     let mut stats = None;
     let mut thumbnail = None;
-    for (role, bytes) in hit.files {
+    for (role, bytes, sha256) in hit.files {
         if role == MESH_ROLE {
             mesh = bytes;
+            mesh_sha256 = Some(sha256);
         } else if role == STATS_ROLE {
             stats = Some(String::from_utf8(bytes).ok()?);
         } else if let Some(ext) = role.strip_prefix(COMPANION_PREFIX) {
@@ -445,6 +455,7 @@ fn restore(plan: &Plan, v: &Variant) -> Option<Artifacts> {
     }
     Some(Artifacts {
         mesh,
+        mesh_sha256,
         companions,
         stats,
         thumbnail,
@@ -539,6 +550,7 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
         .collect();
     Ok(Artifacts {
         mesh: encoded.bytes,
+        mesh_sha256: None,
         companions,
         stats,
         thumbnail,
@@ -594,7 +606,8 @@ fn land(plan: &Plan, v: &Variant, a: Artifacts, source: Source) -> Produced {
     // Hashed only when something records it (a manifest, stats lines, the
     // JSON summary): SHA-256 of a large mesh costs as much as encoding it.
     if plan.batch || plan.want_stats() || args.json || plan.cache.is_some() {
-        entry.sha256 = Some(files::hex(&Sha256::digest(&a.mesh)));
+        let sha = a.mesh_sha256.clone();
+        entry.sha256 = Some(sha.unwrap_or_else(|| files::hex(&Sha256::digest(&a.mesh))));
     }
     if plan.batch {
         entry.extra_files = extra

@@ -65,7 +65,8 @@ struct Meta {
 #[derive(Debug)]
 pub struct Hit {
     pub record: serde_json::Value,
-    pub files: Vec<(String, Vec<u8>)>,
+    /// (role, bytes, their SHA-256), each checked.
+    pub files: Vec<(String, Vec<u8>, String)>,
 }
 
 #[cfg(test)]
@@ -74,8 +75,8 @@ impl Hit {
     pub fn file(&self, role: &str) -> Option<&[u8]> {
         self.files
             .iter()
-            .find(|(r, _)| r == role)
-            .map(|(_, b)| b.as_slice())
+            .find(|(r, _, _)| r == role)
+            .map(|(_, b, _)| b.as_slice())
     }
 }
 
@@ -136,7 +137,7 @@ impl Cache {
             if bytes.len() as u64 != stored.bytes || hex(&Sha256::digest(&bytes)) != stored.sha256 {
                 return None;
             }
-            files.push((stored.role.clone(), bytes));
+            files.push((stored.role.clone(), bytes, stored.sha256.clone()));
         }
         // Least recently used: a hit moves the entry to the front.
         if let Ok(file) = File::options().write(true).open(&meta_path) {
@@ -148,16 +149,17 @@ impl Cache {
         })
     }
 
-    /// Stores `files` (role, bytes) and `record` under `key`, replacing an
-    /// entry that is there. Another process storing the same key at the
-    /// same time is harmless: one whole entry wins.
+    /// Stores `files` (role, bytes, and their SHA-256 when the caller
+    /// already has it) and `record` under `key`, replacing an entry that
+    /// is there. Another process storing the same key at the same time is
+    /// harmless: one whole entry wins.
     pub fn store(
         &self,
         key: &str,
-        files: &[(&str, &[u8])],
+        files: &[(&str, &[u8], Option<&str>)],
         record: serde_json::Value,
     ) -> io::Result<()> {
-        for (role, _) in files {
+        for (role, _, _) in files {
             let plain = !role.is_empty()
                 && role != &"meta.json"
                 && role
@@ -177,12 +179,12 @@ impl Cache {
         fs::create_dir(&staging)?;
         let written = (|| {
             let mut stored = Vec::with_capacity(files.len());
-            for (role, bytes) in files {
+            for (role, bytes, sha256) in files {
                 fs::write(staging.join(role), bytes)?;
                 stored.push(StoredFile {
                     role: (*role).to_owned(),
                     bytes: bytes.len() as u64,
-                    sha256: hex(&Sha256::digest(bytes)),
+                    sha256: sha256.map_or_else(|| hex(&Sha256::digest(bytes)), str::to_owned),
                 });
             }
             let meta = Meta {
@@ -325,7 +327,7 @@ mod tests {
         cache
             .store(
                 &key,
-                &[("mesh", b"solid"), ("stats.json", b"{}")],
+                &[("mesh", b"solid", None), ("stats.json", b"{}", None)],
                 record.clone(),
             )
             .unwrap();
@@ -342,7 +344,7 @@ mod tests {
         assert!(cache.lookup(&key, &|_| false, &["mesh"]).is_none());
         // Storing again replaces it.
         cache
-            .store(&key, &[("mesh", b"solid")], serde_json::Value::Null)
+            .store(&key, &[("mesh", b"solid", None)], serde_json::Value::Null)
             .unwrap();
         assert_eq!(
             cache
@@ -355,10 +357,10 @@ mod tests {
         fs::write(cache.entry_dir(&key).join("meta.json"), b"{\"format\"").unwrap();
         assert!(cache.lookup(&key, &|_| false, &[]).is_none());
         assert!(cache
-            .store(&key, &[("../x", b"")], serde_json::Value::Null)
+            .store(&key, &[("../x", b"", None)], serde_json::Value::Null)
             .is_err());
         assert!(cache
-            .store(&key, &[("meta.json", b"")], serde_json::Value::Null)
+            .store(&key, &[("meta.json", b"", None)], serde_json::Value::Null)
             .is_err());
         // Nothing is left in tmp/.
         assert_eq!(fs::read_dir(cache.root.join("tmp")).unwrap().count(), 0);
@@ -371,7 +373,11 @@ mod tests {
         let keys: Vec<String> = (0..4).map(|k| format!("{k:02x}").repeat(32)).collect();
         for (k, key) in keys.iter().enumerate() {
             cache
-                .store(key, &[("mesh", &[k as u8; 1000])], serde_json::Value::Null)
+                .store(
+                    key,
+                    &[("mesh", &[k as u8; 1000], None)],
+                    serde_json::Value::Null,
+                )
                 .unwrap();
             // Distinct, increasing last-use times.
             let meta = cache.entry_dir(key).join("meta.json");

@@ -688,7 +688,8 @@ impl<'a> Linter<'a> {
     }
 
     /// Steps that draw random values but have no `name`: their stream is
-    /// keyed by position, so inserting a step before them re-rolls them.
+    /// keyed by their content, so any edit to them (a length, a select)
+    /// re-rolls every draw they make.
     fn unnamed_random_steps(&self, out: &mut Vec<Finding>) {
         let every_step = self
             .ast
@@ -716,8 +717,8 @@ impl<'a> Linter<'a> {
                     Severity::Warning,
                     "unnamed-random-step",
                     step.span.as_ref(),
-                    "this step draws random values but has no `name`: its draws are keyed by its position, so inserting a step before it changes them".to_owned(),
-                    Some("give it a `name = \"...\"`".to_owned()),
+                    "this step draws random values but has no `name`: its draws are keyed by its content, so editing any of its arguments re-rolls them".to_owned(),
+                    Some("give it a `name = \"...\"` to keep its draws through edits".to_owned()),
                 ));
             }
         }
