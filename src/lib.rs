@@ -4,12 +4,13 @@
 //! [`grammar`] (the engine, on the [`kernel`]) → [`io`] (writers).
 //! [`cli`] is the command line over all of them. See ARCHITECTURE.md.
 
+#![forbid(unsafe_code)]
+
 pub mod cli;
 pub mod geom;
 pub mod grammar;
 pub mod io;
 pub mod kernel;
-pub mod mem;
 pub mod nurbs;
 pub mod preview;
 pub mod rules;

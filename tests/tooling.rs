@@ -587,3 +587,23 @@ fn every_operator_is_documented() {
         );
     }
 }
+
+/// Every element property has a row in the rule reference.
+#[test]
+fn every_property_is_documented() {
+    let docs = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/rules.md"),
+    )
+    .unwrap();
+    for row in graftal::rules::property::ROWS {
+        let shown = match row.name.rsplit_once('.') {
+            Some((base, "x" | "y" | "z")) => format!("| `{base}.x/y/z` |"),
+            _ => format!("| `{}` |", row.name),
+        };
+        assert!(
+            docs.contains(&shown),
+            "docs/rules.md has no row for `{}`",
+            row.name
+        );
+    }
+}

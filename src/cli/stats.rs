@@ -174,7 +174,7 @@ fn mesh_json(r: &MeshReport, g: &Gates) -> MeshJson {
 /// write them (and `manifest merge` reads them back).
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 pub struct StepJson {
-    pub name: String,
+    pub name: std::sync::Arc<str>,
     pub op: String,
     pub runs: usize,
     pub candidates: usize,
@@ -192,10 +192,10 @@ pub struct StepJson {
     pub time_ms: Option<f64>,
     /// Steps that mesh a signed distance field: what the meshing did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub field: Option<FieldJson>,
+    pub field: Option<Box<FieldJson>>,
     /// `nurbs` and `pn_smooth` steps: what the tessellation made.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub surface: Option<SurfaceJson>,
+    pub surface: Option<Box<SurfaceJson>>,
 }
 
 /// What tessellating a surface (or PN smoothing) did (see
@@ -308,7 +308,7 @@ fn field_json(f: &FieldStats, timings: bool) -> FieldJson {
 }
 
 /// The steps of a run in program order; times only if `timings`.
-pub fn steps_json(steps: &[StepStats], timings: bool) -> Vec<StepJson> {
+pub fn steps_json(steps: &[Box<StepStats>], timings: bool) -> Vec<StepJson> {
     steps
         .iter()
         .map(|s| StepJson {
@@ -327,8 +327,8 @@ pub fn steps_json(steps: &[StepStats], timings: bool) -> Vec<StepJson> {
             created_edges: s.created.edges,
             created_faces: s.created.faces,
             time_ms: timings.then_some(s.elapsed.as_secs_f64() * 1e3),
-            field: s.field.as_deref().map(|f| field_json(f, timings)),
-            surface: s.surface.as_deref().map(surface_json),
+            field: s.field.as_deref().map(|f| Box::new(field_json(f, timings))),
+            surface: s.surface.as_deref().map(|s| Box::new(surface_json(s))),
         })
         .collect()
 }

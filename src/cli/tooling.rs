@@ -120,16 +120,40 @@ pub fn man(dir: Option<&Path>) -> Result<(), Failure> {
             super::write_stdout(&buffer)
         }
         Some(dir) => {
-            if !dir.is_dir() {
+            if !super::files::is_dir(dir) {
                 return Err(Failure::Input(format!(
                     "{}: not a directory",
                     dir.display()
                 )));
             }
-            clap_mangen::generate_to(cmd, dir).map_err(|e| {
-                Failure::Runtime(format!("cannot write man pages to {}: {e}", dir.display()))
+            // One page per command (`graftal-run.1`, …), as clap_mangen's
+            // `generate_to` names them, written all or none.
+            fn pages(cmd: clap::Command, out: &mut Vec<(String, Vec<u8>)>) -> std::io::Result<()> {
+                for sub in cmd.get_subcommands().filter(|s| !s.is_hide_set()).cloned() {
+                    pages(sub, out)?;
+                }
+                let man = clap_mangen::Man::new(cmd);
+                let mut buffer = Vec::new();
+                man.render(&mut buffer)?;
+                out.push((man.get_filename(), buffer));
+                Ok(())
+            }
+            let mut cmd = cmd.disable_help_subcommand(true);
+            cmd.build();
+            let mut rendered = Vec::new();
+            pages(cmd, &mut rendered)
+                .map_err(|e| Failure::Runtime(format!("cannot render the man pages: {e}")))?;
+            let mut staged = super::files::Staged::new();
+            for (name, bytes) in &rendered {
+                let path = dir.join(name);
+                staged.stage(&path, bytes).map_err(|e| {
+                    Failure::Runtime(format!("cannot write {}: {e}", path.display()))
+                })?;
+            }
+            staged.commit().map_err(|(path, e)| {
+                Failure::Runtime(format!("cannot write {}: {e}", path.display()))
             })?;
-            eprintln!("wrote man pages to {}", dir.display());
+            eprintln!("wrote {} man pages to {}", rendered.len(), dir.display());
             Ok(())
         }
     }
@@ -232,7 +256,7 @@ pub fn explain(
 
 /// Program steps in running order (a compound's steps after its first
 /// call, one level deeper), matched with the stats of those that ran.
-fn explain_steps<'a>(program: &'a Program, stats: &'a [StepStats]) -> Vec<ExplainStep<'a>> {
+fn explain_steps<'a>(program: &'a Program, stats: &'a [Box<StepStats>]) -> Vec<ExplainStep<'a>> {
     // Every step by uid, with its depth and whether it is inside a compound.
     let mut ordered: Vec<(&'a Step, usize, Option<String>)> = Vec::new();
     let mut seen: HashSet<usize> = HashSet::new();
@@ -266,7 +290,7 @@ fn explain_steps<'a>(program: &'a Program, stats: &'a [StepStats]) -> Vec<Explai
     let mut next = stats.iter().peekable();
     for (step, _) in &by_uid {
         if next.peek().is_some_and(|s| s.name == step.name) {
-            ran[step.uid as usize] = next.next();
+            ran[step.uid as usize] = next.next().map(|s| &**s);
         }
     }
     ordered

@@ -89,7 +89,7 @@ struct Case {
 }
 
 pub fn verify(args: VerifyArgs) -> Result<(), Failure> {
-    if !args.golden.is_dir() {
+    if !super::files::is_dir(&args.golden) {
         return Err(Failure::Input(format!(
             "golden directory {} does not exist (create it, then run with --bless to fill it)",
             args.golden.display()

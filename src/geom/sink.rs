@@ -157,13 +157,6 @@ impl MeshSink for IndexedMesh {
         self.face_starts.reserve(begin.polygons);
         self.face_indices.reserve(begin.corners);
         self.lines.reserve(begin.lines);
-        // Written front to back right away: their pages are mapped on the
-        // other core meanwhile.
-        let mut prefault = crate::mem::Prefault::default();
-        prefault.add(&mut self.positions, begin.vertices);
-        prefault.add(&mut self.face_starts, begin.polygons);
-        prefault.add(&mut self.face_indices, begin.corners);
-        prefault.start();
         self.vertex_scalars = begin
             .scalars
             .iter()

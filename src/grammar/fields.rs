@@ -22,8 +22,8 @@ use crate::kernel::build::KernelBuilder;
 use crate::kernel::ops::delete::{self, DeleteMode};
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
-use crate::rules::compile::tree_limits;
 use crate::rules::program::Call;
+use crate::rules::sdf_tree::tree_limits;
 use crate::rules::sdf_tree::{BuiltTree, SdfForest};
 use crate::sdf::{
     self, GridKind, MeshCheck, MeshField, MeshLimits, MeshOptions, MeshOutput, Mesher, Node,

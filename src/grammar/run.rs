@@ -20,13 +20,13 @@ use crate::geom::material::srgb_to_linear;
 use crate::kernel::attrs::AttrValue;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
-use crate::rules::compile::{property_from_index, PROPERTY_SLOTS};
 use crate::rules::expr::SlotSource;
 use crate::rules::program::{
     Call, Command, CommandKind, Compound, Condition, FrameParams, OnIntersection, Op, ParamKind,
     Policy, Program, Step,
 };
 use crate::rules::program::{COLOR_LAYER, PART_LAYER};
+use crate::rules::property;
 use crate::rules::random;
 
 use super::commands::{self, CommandError, Fan, Plan};
@@ -103,7 +103,7 @@ pub struct CreatedCounts {
 /// run once per initial primitive).
 #[derive(Debug, Clone)]
 pub struct StepStats {
-    pub name: String,
+    pub name: std::sync::Arc<str>,
     pub op: &'static str,
     /// Times the step ran.
     pub runs: usize,
@@ -147,7 +147,7 @@ pub struct RunOutput {
     /// Parameter values, sorted by name.
     pub params: Vec<(String, f64)>,
     /// One entry per step that ran, in program order.
-    pub steps: Vec<StepStats>,
+    pub steps: Vec<Box<StepStats>>,
     /// Warnings about the inputs (each once), in the order they arose.
     pub warnings: Vec<String>,
 }
@@ -220,7 +220,8 @@ pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunErro
         mesh,
         seed: runner.seed,
         params,
-        steps: runner.stats.into_iter().flatten().map(|s| *s).collect(),
+        // The boxes move: a million-step program's records are not copied.
+        steps: runner.stats.into_iter().flatten().collect(),
         warnings: runner.warnings,
     })
 }
@@ -349,7 +350,7 @@ struct Snapshot {
 fn step_error(step: &Step, error: StepError) -> RunError {
     RunError {
         kind: error.kind(),
-        step: step.name.clone(),
+        step: step.name.to_string(),
         location: step.location.clone(),
         error,
     }
@@ -757,7 +758,7 @@ impl Runner<'_> {
             ctx: &ctx,
             domain,
             index,
-            values: [0.0; PROPERTY_SLOTS],
+            values: [0.0; property::SLOT_COUNT],
             known: 0,
         };
         self.evaluations += 1;
@@ -802,7 +803,7 @@ impl Runner<'_> {
                 ctx: &ctx,
                 domain: Domain::Face,
                 index: f.index(),
-                values: [0.0; PROPERTY_SLOTS],
+                values: [0.0; property::SLOT_COUNT],
                 known: 0,
             };
             let [a, b, c] = [0, 1, 2].map(|k| spec.channels[k].expr.eval_with(&mut source));
@@ -1201,12 +1202,12 @@ struct LazyProperties<'a> {
     ctx: &'a Context<'a>,
     domain: Domain,
     index: usize,
-    values: [f64; PROPERTY_SLOTS],
+    values: [f64; property::SLOT_COUNT],
     /// Bit k set: `values[k]` holds property k.
     known: u64,
 }
 
-const _: () = assert!(PROPERTY_SLOTS <= u64::BITS as usize);
+const _: () = assert!(property::SLOT_COUNT <= u64::BITS as usize);
 
 impl SlotSource for LazyProperties<'_> {
     fn slot(&mut self, slot: u32) -> f64 {
@@ -1214,7 +1215,7 @@ impl SlotSource for LazyProperties<'_> {
             return self.params[slot as usize];
         };
         if self.known & (1 << k) == 0 {
-            let property = property_from_index(k as u32);
+            let property = property::at(k as u32);
             self.values[k] = properties::property(self.ctx, self.domain, self.index, property);
             self.known |= 1 << k;
         }

@@ -39,12 +39,10 @@ impl<T> Arena<T> {
     }
 
     /// Room for `additional` more elements without growing (when no slot
-    /// is free to reuse); the pages they will fill join `prefault`
-    /// ([`crate::mem::Prefault`]: mapped in the background when large).
-    pub fn reserve(&mut self, additional: usize, prefault: &mut crate::mem::Prefault) {
-        let new_slots = additional.saturating_sub(self.free.len());
-        self.slots.reserve(new_slots);
-        prefault.add(&mut self.slots, new_slots);
+    /// is free to reuse).
+    pub fn reserve(&mut self, additional: usize) {
+        self.slots
+            .reserve(additional.saturating_sub(self.free.len()));
     }
 
     pub fn remove(&mut self, index: u32) -> Option<T> {

@@ -183,14 +183,10 @@ impl Mesh {
     /// import or a large generator knows its counts: growing the arenas
     /// by doubling copies them and touches every page twice).
     pub fn reserve(&mut self, verts: usize, edges: usize, loops: usize, faces: usize) {
-        // One helper maps the four arenas' new pages, a slice of each in
-        // turn, as an operator fills them side by side.
-        let mut prefault = crate::mem::Prefault::default();
-        self.verts.reserve(verts, &mut prefault);
-        self.edges.reserve(edges, &mut prefault);
-        self.loops.reserve(loops, &mut prefault);
-        self.faces.reserve(faces, &mut prefault);
-        prefault.start();
+        self.verts.reserve(verts);
+        self.edges.reserve(edges);
+        self.loops.reserve(loops);
+        self.faces.reserve(faces);
     }
 
     /// Recomputes every stored face normal.

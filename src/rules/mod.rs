@@ -14,6 +14,7 @@ pub mod lint;
 pub mod nurbs_def;
 pub mod operators;
 pub mod program;
+pub mod property;
 pub mod random;
 pub mod ron;
 pub mod schema;

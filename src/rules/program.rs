@@ -338,8 +338,9 @@ pub struct Step {
     /// Unique over the program (compound contents included), in program
     /// order; the step's generation number is `uid + 1`.
     pub uid: u32,
-    /// Full path: rule and compound names, repeat counts, the step's name.
-    pub name: String,
+    /// Full path: rule and compound names, repeat counts, the step's name
+    /// (shared with the run's statistics, not copied per run).
+    pub name: std::sync::Arc<str>,
     /// Random stream key: `step/` and the step's key path, whose last part
     /// is its name or, unnamed, a hash of its content (`compile::step_key`).
     pub key: u64,

@@ -17,11 +17,12 @@ use std::path::Path;
 
 use serde_json::{json, Map, Value};
 
-use super::compile::{format_of, PROPERTY_NAMES};
+use super::compile::format_of;
 use super::diagnostic::RuleError;
 use super::diagnostic::SourceFile;
 use super::expr::BUILTIN_CONSTANT_NAMES;
 use super::operators::{self, ArgKind, Family, OperatorDef, ParamDef};
+use super::property;
 use super::sdf_kinds::{self, Children, KindDef, CHILDREN_KEY, CHILD_KEY, KIND_KEY, PLACEMENT};
 use super::spanned::SourceFormat;
 use crate::kernel::Domain;
@@ -29,11 +30,9 @@ use crate::kernel::Domain;
 /// Names parameters may not take: the compiler's element properties and
 /// built-in constants.
 fn reserved_names() -> Vec<&'static str> {
-    PROPERTY_NAMES
-        .iter()
-        .chain(&BUILTIN_CONSTANT_NAMES)
-        .copied()
-        .collect()
+    let mut names = property::plain_names();
+    names.extend(BUILTIN_CONSTANT_NAMES);
+    names
 }
 
 /// Element kinds an operator's `on` may name; the first is the default.

@@ -12,7 +12,21 @@ use glam::DVec3;
 use super::expr::Expr;
 use super::program::Arg;
 use super::sdf_kinds::{KindDef, KindId, PLACEMENT};
-use crate::sdf::{MeshField, Node, NodeId, Rotation, SdfError, SignMethod, SignMode, Tree};
+use crate::sdf::{
+    MeshField, Node, NodeId, Rotation, SdfError, SignMethod, SignMode, Tree, TreeLimits,
+};
+
+/// Deepest nesting of trees (inline tables and names) a file may write.
+pub const MAX_TREE_DEPTH: usize = 64;
+
+/// Limits the pillar applies to a built tree: each program node adds at
+/// most four placement nodes.
+pub fn tree_limits() -> TreeLimits {
+    TreeLimits {
+        max_depth: 5 * MAX_TREE_DEPTH + 8,
+        ..TreeLimits::default()
+    }
+}
 
 /// Every tree node of a program; children precede their parents.
 #[derive(Debug, Clone, Default)]

@@ -76,7 +76,7 @@ pub fn grow(text: &str) -> RunOutput {
 pub fn step<'a>(out: &'a RunOutput, name: &str) -> &'a StepStats {
     out.steps
         .iter()
-        .find(|s| s.name == name)
+        .find(|s| &*s.name == name)
         .unwrap_or_else(|| panic!("no step {name}"))
 }
 

@@ -48,9 +48,9 @@ pub(super) struct Produced {
 
 /// Everything the workers produced, in variant order.
 pub(super) struct Done {
-    /// Per variant: its manifest entry, and what it produced (`None` for
-    /// a variant `--fail-fast` never started).
-    pub results: Vec<(VariantEntry, Option<Produced>)>,
+    /// Per variant, in order, what it produced (a `not_run` entry for a
+    /// variant `--fail-fast` never started).
+    pub results: Vec<Produced>,
     pub elapsed: Duration,
     /// The NDJSON stats lines, when they go to a file.
     pub ndjson: Vec<u8>,
@@ -213,14 +213,14 @@ fn compact_json(pretty: &str) -> String {
 
 /// Runs every variant on `-j` workers; `finished` sees each as it ends,
 /// `emit` each in index order (returning false stops the batch). Returns
-/// the manifest entries (with what was produced) in index order, variants
-/// never started (`--fail-fast`) as `not_run`.
+/// what each produced in index order, variants never started
+/// (`--fail-fast`) as `not_run`.
 fn run_variants(
     plan: &Plan,
     progress: &Progress,
     mut finished: impl FnMut(&Produced),
     mut emit: impl FnMut(&Produced) -> bool,
-) -> Vec<(VariantEntry, Option<Produced>)> {
+) -> Vec<Produced> {
     let variants = &plan.variants;
     let jobs = plan
         .args
@@ -286,9 +286,15 @@ fn run_variants(
     variants
         .iter()
         .zip(slots)
-        .map(|(v, produced)| match produced {
-            Some(p) => (p.entry.clone(), Some(p)),
-            None => (entry_for(v, Status::NotRun), None),
+        .map(|(v, produced)| {
+            produced.unwrap_or_else(|| Produced {
+                entry: entry_for(v, Status::NotRun),
+                stats: None,
+                staged: None,
+                warnings: Vec::new(),
+                thumbnail: None,
+                source: Source::Made,
+            })
         })
         .collect()
 }
@@ -556,7 +562,13 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
         thumbnail,
         record: Record {
             counts,
-            steps: steps_json(&result.steps, args.timings),
+            // Only a manifest or stats record them: a single run's
+            // million-step program need not copy a million records.
+            steps: if plan.batch || want_stats {
+                steps_json(&result.steps, args.timings)
+            } else {
+                Vec::new()
+            },
             warnings: result.warnings.clone(),
         },
     })

@@ -9,7 +9,7 @@ use super::execute::{Done, Produced, Source};
 use super::resolve::{describe_shard, Plan, StatsSink, Variant};
 use super::RunArgs;
 use crate::cli::files;
-use crate::cli::manifest::{self, Summary, VariantEntry};
+use crate::cli::manifest::{self, Status};
 use crate::cli::Failure;
 
 pub(super) fn report(plan: &Plan, done: Done) -> Result<(), Failure> {
@@ -21,10 +21,9 @@ pub(super) fn report(plan: &Plan, done: Done) -> Result<(), Failure> {
         journal,
         journal_error,
     } = done;
-    let (entries, produced): (Vec<VariantEntry>, Vec<Option<Produced>>) =
-        results.into_iter().unzip();
+    let mut produced = results;
     if !plan.batch {
-        return single(plan, entries, produced);
+        return single(plan, &mut produced);
     }
     if let StatsSink::File(path) = &plan.stats_sink {
         files::write_atomic(path, &ndjson)
@@ -35,10 +34,21 @@ pub(super) fn report(plan: &Plan, done: Done) -> Result<(), Failure> {
         files::write_atomic(path, &png)
             .map_err(|e| Failure::Runtime(format!("cannot write {}: {e}", path.display())))?;
     }
-    let summary = Summary::of(&entries);
+    let count = |s: Source| {
+        produced
+            .iter()
+            .filter(|p| p.source == s && p.entry.status == Status::Ok)
+            .count()
+    };
+    let (cached, resumed) = (count(Source::Cached), count(Source::Resumed));
+    // The entries move into the manifest (a million-step program's step
+    // records are not copied).
+    let mut manifest = plan.manifest(produced.into_iter().map(|p| p.entry).collect());
+    let summary = manifest.summary;
     if let Some(path) = &plan.manifest_path {
-        manifest::write(path, &plan.manifest(entries.clone()))?;
+        manifest::write(path, &manifest)?;
     }
+    let entries = std::mem::take(&mut manifest.variants);
     if let Some(journal) = journal {
         if let Err(e) = journal.finish() {
             eprintln!("warning: cannot remove the journal: {e}");
@@ -47,14 +57,6 @@ pub(super) fn report(plan: &Plan, done: Done) -> Result<(), Failure> {
     if let Some(e) = journal_error {
         eprintln!("warning: {e} (--resume of this batch will redo more)");
     }
-    let count = |s: Source| {
-        produced
-            .iter()
-            .flatten()
-            .filter(|p| p.source == s && p.entry.error.is_none())
-            .count()
-    };
-    let (cached, resumed) = (count(Source::Cached), count(Source::Resumed));
     let evicted = match &plan.cache {
         Some(cache) => match cache.evict() {
             Ok(e) => Some(e),
@@ -169,17 +171,12 @@ pub(super) fn report(plan: &Plan, done: Done) -> Result<(), Failure> {
 
 /// A single run: its mesh, stats file, contact sheet and manifest land
 /// together, or none does.
-fn single(
-    plan: &Plan,
-    entries: Vec<VariantEntry>,
-    mut produced: Vec<Option<Produced>>,
-) -> Result<(), Failure> {
+fn single(plan: &Plan, produced: &mut [Produced]) -> Result<(), Failure> {
     let args = plan.args;
-    let entry = &entries[0];
-    if let Some(err) = &entry.error {
+    if let Some(err) = &produced[0].entry.error {
         return Err(Failure::Limit(err.exit_code, err.message.clone()));
     }
-    let p = produced[0].as_mut().expect("an ok variant was produced");
+    let p = &mut produced[0];
     let mut staged = p
         .staged
         .take()
@@ -201,6 +198,7 @@ fn single(
         staged.stage(path, &png).map_err(|e| cannot(path, e))?;
     }
     staged.commit().map_err(|(path, e)| cannot(&path, e))?;
+    let (entry, source) = (&produced[0].entry, produced[0].source);
     if let Some(doc) = print_stats {
         crate::cli::write_stdout(format!("{doc}\n").as_bytes())?;
     }
@@ -210,8 +208,8 @@ fn single(
             edges: 0,
             faces: 0,
         });
-        let from = match produced[0].as_ref().map(|p| p.source) {
-            Some(Source::Cached) => ", from the cache",
+        let from = match source {
+            Source::Cached => ", from the cache",
             _ => "",
         };
         eprintln!(
@@ -249,7 +247,7 @@ pub(super) fn check_contact_sheet(path: &Path, tiles: usize, size: u32) -> Resul
 fn contact_sheet(
     args: &RunArgs,
     variants: &[Variant],
-    produced: &[Option<Produced>],
+    produced: &[Produced],
 ) -> Result<Vec<u8>, Failure> {
     let size = args.thumbnail_size;
     let blank = crate::preview::Image {
@@ -267,7 +265,7 @@ fn contact_sheet(
                     label.push_str(&format!(" {}={value}", axis.name));
                 }
             }
-            match p.as_ref().and_then(|p| p.thumbnail.clone()) {
+            match p.thumbnail.clone() {
                 Some(image) => (image, label),
                 None => (blank.clone(), format!("{label} failed")),
             }

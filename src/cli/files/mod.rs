@@ -160,6 +160,11 @@ pub fn executable_sha256() -> io::Result<String> {
     .map_err(io::Error::other)
 }
 
+/// Whether `path` is a directory (following symbolic links).
+pub fn is_dir(path: &Path) -> bool {
+    fs::metadata(path).is_ok_and(|m| m.is_dir())
+}
+
 /// Lowercase hexadecimal.
 pub fn hex(bytes: &[u8]) -> String {
     use std::fmt::Write as _;

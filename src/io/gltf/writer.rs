@@ -162,10 +162,6 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                 vertices: Vec::with_capacity(corners),
                 indices: Vec::with_capacity(3 * (corners - 2 * polygons.len())),
             };
-            // Every index is written; how many vertices are shared is not
-            // known, so only the indices' pages are mapped ahead.
-            let indices = draw.indices.capacity();
-            crate::mem::prefault_spare(&mut draw.indices, indices);
             sharing.next.reserve(corners);
             let smooth = !mesh.corner_normals.is_empty();
             for &k in polygons {
@@ -527,8 +523,7 @@ pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u8>
         .flatten()
         .map(|d| d.vertices.len() * per_vertex(d) + d.indices.len())
         .sum();
-    let mut buffer = Vec::with_capacity(4 * words + GLB_FRONT_ROOM);
-    crate::mem::prefault_spare(&mut buffer, 4 * words);
+    let buffer = Vec::with_capacity(4 * words + GLB_FRONT_ROOM);
     let mut b = Builder {
         root: json::Root {
             asset: json::Asset {

@@ -662,6 +662,10 @@ impl PairLimits {
     }
 }
 
+/// Most pairs of multi-chunk elements a search remembers (16 bytes each
+/// and the set's overhead: about 40 MB) before it stops early.
+const MAX_SHARED_PAIRS: usize = 1 << 20;
+
 /// What a pair search found.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PairSearch<T> {
@@ -721,14 +725,24 @@ impl Found {
             if !self.shared.insert(key) {
                 return;
             }
+            // Remembered pairs are memory: a degenerate input (one OBJ face
+            // of a million corners winding over itself) would grow the set
+            // by every test. Past the cap the search stops, its counts
+            // lower bounds, as when the test budget is spent.
+            if self.shared.len() >= MAX_SHARED_PAIRS {
+                self.budget = 0;
+                self.exhausted = true;
+            }
         } else {
             self.single += 1;
         }
-        if self.keep > 0 {
+        // Keep the smallest `keep`: a key past the largest kept one (the
+        // usual case once the heap is full) costs one comparison.
+        if self.smallest.len() < self.keep {
             self.smallest.push(key);
-            if self.smallest.len() > self.keep {
-                self.smallest.pop();
-            }
+        } else if self.smallest.peek().is_some_and(|&max| key < max) {
+            self.smallest.pop();
+            self.smallest.push(key);
         }
     }
 }

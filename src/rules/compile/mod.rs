@@ -18,6 +18,7 @@ use super::program::{
     Arg, Call, Command, CommandKind, Compound, Condition, FrameParams, Look, OnIntersection, Op,
     Param, ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
 };
+use super::property;
 use super::random::stream_key;
 
 mod look;
@@ -26,7 +27,6 @@ mod sdf;
 mod step_key;
 use super::spanned::{SourceFormat, Spanned};
 pub use nurbs::SURFACE_KEYS;
-pub use sdf::{tree_limits, MAX_TREE_DEPTH};
 
 /// A `--set name=value` override from the command line.
 #[derive(Debug, Clone, PartialEq)]
@@ -107,79 +107,6 @@ pub fn parse(file: &SourceFile, format: SourceFormat) -> Result<RuleFile, RuleEr
     }
 }
 
-/// Single-name element properties; dotted ones (`pos.x`) are listed in
-/// [`property_for`]. Parameters may not take these names.
-pub(crate) const PROPERTY_NAMES: &[&str] = &[
-    "id",
-    "random",
-    "length",
-    "area",
-    "sides",
-    "degree",
-    "edges",
-    "faces",
-    "neighbors",
-    "vert_neighbors",
-    "age",
-    "generation",
-    "radius",
-    "out_edges",
-    "in_edges",
-];
-
-fn axis(c: &str) -> Option<usize> {
-    match c {
-        "x" => Some(0),
-        "y" => Some(1),
-        "z" => Some(2),
-        _ => None,
-    }
-}
-
-/// The property a name denotes for elements of `domain`, if any.
-pub(crate) fn property_for(domain: Domain, name: &str) -> Option<Property> {
-    use Domain::{Edge as E, Face as F, Vert as V};
-    use Property::*;
-    let simple = match (domain, name) {
-        (_, "id") => Some(Id),
-        (_, "random") => Some(Random),
-        (_, "age") => Some(Age),
-        (_, "generation") => Some(Generation),
-        (_, "radius") => Some(Radius),
-        (E, "length") => Some(Length),
-        (F, "area") => Some(Area),
-        (F, "sides" | "edges") => Some(Sides),
-        (V, "degree" | "edges") => Some(Degree),
-        (V | E, "faces") => Some(FaceCount),
-        (V | E, "out_edges") => Some(OutEdges),
-        (V | E, "in_edges") => Some(InEdges),
-        (E, "neighbors") => Some(EdgeNeighborEdges),
-        (F, "neighbors") => Some(EdgeNeighbors),
-        (F, "vert_neighbors") => Some(VertNeighbors),
-        (V | E, "pre.length") => Some(PreLength),
-        (E, "rel.length") => Some(RelativeLength),
-        (F, "rel.area") => Some(RelativeArea),
-        _ => None,
-    };
-    if simple.is_some() {
-        return simple;
-    }
-    let (base, component) = name.split_once('.')?;
-    let i = axis(component)?;
-    match (domain, base) {
-        (V, "pos") => Some(Position(i)),
-        (V | F, "normal") => Some(Normal(i)),
-        (E | F, "center") => Some(Center(i)),
-        (E, "dir") => Some(Direction(i)),
-        (E | F, "min") => Some(Min(i)),
-        (E | F, "max") => Some(Max(i)),
-        (E, "pre") => Some(PrePosition(i)),
-        (E, "post") => Some(PostPosition(i)),
-        (_, "rel") => Some(Relative(i)),
-        _ => None,
-    }
-}
-
 struct Compiler<'a> {
     file: &'a SourceFile,
     param_names: Vec<String>,
@@ -255,7 +182,7 @@ impl<'a> Compiler<'a> {
             if let Some(hint) = hint {
                 return e.with_help(hint);
             }
-            if PROPERTY_NAMES
+            if property::plain_names()
                 .iter()
                 .any(|p| e.message.contains(&format!("`{p}`")))
                 || e.message.contains('.')
@@ -345,13 +272,13 @@ impl<'a> Compiler<'a> {
                 return Some(slot);
             }
             // Slots past the parameters are properties, in the fixed
-            // order of `property_index`.
-            property_for(domain, name).map(|p| base + property_index(p))
+            // order of `property::SLOTS`.
+            property::lookup(domain, name).map(|p| base + property::index(p))
         };
         let expr = Expr::compile(&text.value, &resolver).map_err(|err| {
             let hint = unknown_name_hint(&err.message, &self.param_names);
             let e = self.expr_error(self.content_span(text, &text.value), err);
-            let properties = format!("{} properties: {}", domain, property_help(domain));
+            let properties = format!("{} properties: {}", domain, property::help(domain));
             e.with_help(match hint {
                 Some(hint) => format!("{hint} ({properties})"),
                 None => properties,
@@ -359,98 +286,11 @@ impl<'a> Compiler<'a> {
         })?;
         if expr
             .used_slots()
-            .contains(&(base + property_index(Property::Random)))
+            .contains(&(base + property::index(Property::Random)))
         {
             self.reads_random.set(true);
         }
         Ok(Condition { expr })
-    }
-}
-
-/// Dense numbering of properties so a condition's slot array can be
-/// indexed directly: slot = param_count + property_index.
-pub fn property_index(p: Property) -> u32 {
-    use Property::*;
-    let vector = |base: u32, i: usize| base + i as u32;
-    match p {
-        Id => 0,
-        Random => 1,
-        Length => 2,
-        Area => 3,
-        Sides => 4,
-        Degree => 5,
-        FaceCount => 6,
-        EdgeNeighbors => 7,
-        VertNeighbors => 8,
-        Age => 9,
-        Generation => 10,
-        Radius => 11,
-        OutEdges => 12,
-        InEdges => 13,
-        EdgeNeighborEdges => 14,
-        PreLength => 15,
-        RelativeLength => 16,
-        RelativeArea => 17,
-        Position(i) => vector(18, i),
-        Center(i) => vector(21, i),
-        Normal(i) => vector(24, i),
-        Min(i) => vector(27, i),
-        Max(i) => vector(30, i),
-        Direction(i) => vector(33, i),
-        PrePosition(i) => vector(36, i),
-        PostPosition(i) => vector(39, i),
-        Relative(i) => vector(42, i),
-    }
-}
-
-/// Number of property slots after the parameters.
-pub const PROPERTY_SLOTS: usize = 45;
-
-/// Inverse of [`property_index`].
-pub fn property_from_index(i: u32) -> Property {
-    use Property::*;
-    const SCALARS: [Property; 18] = [
-        Id,
-        Random,
-        Length,
-        Area,
-        Sides,
-        Degree,
-        FaceCount,
-        EdgeNeighbors,
-        VertNeighbors,
-        Age,
-        Generation,
-        Radius,
-        OutEdges,
-        InEdges,
-        EdgeNeighborEdges,
-        PreLength,
-        RelativeLength,
-        RelativeArea,
-    ];
-    if let Some(&p) = SCALARS.get(i as usize) {
-        return p;
-    }
-    let c = ((i - 18) % 3) as usize;
-    match (i - 18) / 3 {
-        0 => Position(c),
-        1 => Center(c),
-        2 => Normal(c),
-        3 => Min(c),
-        4 => Max(c),
-        5 => Direction(c),
-        6 => PrePosition(c),
-        7 => PostPosition(c),
-        _ => Relative(c),
-    }
-}
-
-fn property_help(domain: Domain) -> &'static str {
-    match domain {
-        Domain::Vert => "id, random, age, generation, radius, pos.x/y/z, rel.x/y/z, normal.x/y/z, degree (= edges), faces, out_edges, in_edges, pre.length",
-        Domain::Edge => "id, random, age, generation, radius, length, rel.length, pre.length, center.x/y/z, rel.x/y/z, dir.x/y/z, pre.x/y/z, post.x/y/z, min.x/y/z, max.x/y/z, faces, neighbors, out_edges, in_edges",
-        Domain::Face => "id, random, age, generation, radius, area, rel.area, sides (= edges), neighbors, vert_neighbors, center.x/y/z, rel.x/y/z, normal.x/y/z, min.x/y/z, max.x/y/z",
     }
 }
 
@@ -513,7 +353,7 @@ pub fn compile(
                 ),
             ));
         }
-        if PROPERTY_NAMES.contains(&name.value.as_str())
+        if property::plain_names().contains(&name.value.as_str())
             || BUILTIN_CONSTANT_NAMES.contains(&name.value.as_str())
         {
             return Err(compiler.error(
@@ -1453,7 +1293,7 @@ impl Expander<'_, '_> {
         Ok(Step {
             uid,
             key: stream_key(&format!("step/{key_path}")),
-            name: path.to_owned(),
+            name: path.into(),
             from,
             on_intersection,
             rule_instances: self.rule_instances.clone(),

@@ -18,21 +18,10 @@ use crate::rules::ast::{self, ArgValue};
 use crate::rules::diagnostic::RuleError;
 use crate::rules::program::{Arg, Param, ParamKind};
 use crate::rules::sdf_kinds::{self, Children, CHILDREN_KEY, CHILD_KEY, KIND_KEY, PLACEMENT};
+use crate::rules::sdf_tree::{tree_limits, MAX_TREE_DEPTH};
 use crate::rules::sdf_tree::{SdfForest, SdfNode, TreeError};
 use crate::rules::spanned::Spanned;
-use crate::sdf::{MeshField, SignMode, TreeLimits};
-
-/// Deepest nesting of trees (inline tables and names) a file may write.
-pub const MAX_TREE_DEPTH: usize = 64;
-
-/// Limits the pillar applies to a built tree: each program node adds at
-/// most four placement nodes.
-pub fn tree_limits() -> TreeLimits {
-    TreeLimits {
-        max_depth: 5 * MAX_TREE_DEPTH + 8,
-        ..TreeLimits::default()
-    }
-}
+use crate::sdf::{MeshField, SignMode};
 
 /// What the compiler keeps while compiling trees.
 #[derive(Default)]

@@ -31,13 +31,12 @@ use crate::geom::interval::{next_down, next_up, Interval};
 use crate::kernel::Domain;
 
 use super::ast::{self, ArgValue, ParamSpec, RuleFile, Scalar, VectorSpec};
-use super::compile::{
-    self, domain_of, property_for, property_from_index, property_index, Override, PROPERTY_SLOTS,
-};
+use super::compile::{self, domain_of, Override};
 use super::diagnostic::{content_span, line_column, RuleError, SourceFile};
 use super::expr::{Binary, Expr, Ternary, Tree, Unary};
 use super::operators::{self, ArgKind, Family};
 use super::program::{ParamKind, Program, Property};
+use super::property;
 use super::sdf_kinds;
 use super::spanned::Spanned;
 
@@ -529,8 +528,8 @@ impl<'a> Linter<'a> {
                 used.borrow_mut().insert(slot);
                 return Some(slot as u32);
             }
-            if let Some(p) = domain.and_then(|d| property_for(d, name)) {
-                return Some(base + property_index(p));
+            if let Some(p) = domain.and_then(|d| property::lookup(d, name)) {
+                return Some(base + property::index(p));
             }
             unknown.borrow_mut().push(name.to_owned());
             // Keep parsing to find every unknown name.
@@ -559,7 +558,7 @@ impl<'a> Linter<'a> {
                     Context::Primitive(d) | Context::Condition(d)
                         if [Domain::Vert, Domain::Edge, Domain::Face]
                             .iter()
-                            .any(|&other| property_for(other, &name).is_some()) =>
+                            .any(|&other| property::lookup(other, &name).is_some()) =>
                     {
                         Some(format!(
                             "`{name}` is a property of other elements, not of {}s",
@@ -569,7 +568,7 @@ impl<'a> Linter<'a> {
                     Context::Param(_) | Context::Operator
                         if [Domain::Vert, Domain::Edge, Domain::Face]
                             .iter()
-                            .any(|&d| property_for(d, &name).is_some()) =>
+                            .any(|&d| property::lookup(d, &name).is_some()) =>
                     {
                         Some("element properties are only available in conditions and G³ command values".to_owned())
                     }
@@ -729,10 +728,10 @@ impl<'a> Linter<'a> {
     fn conditions(&self, sites: &[Site], program: &Program, out: &mut Vec<Finding>) {
         let base = self.params.len();
         // Parameters in conditions: any finite number (`--set` may change them).
-        let mut any_params = vec![Interval::finite(); base + PROPERTY_SLOTS];
-        let mut integer = vec![false; base + PROPERTY_SLOTS];
-        for k in 0..PROPERTY_SLOTS {
-            let (range, int) = property_range(property_from_index(k as u32));
+        let mut any_params = vec![Interval::finite(); base + property::SLOT_COUNT];
+        let mut integer = vec![false; base + property::SLOT_COUNT];
+        for k in 0..property::SLOT_COUNT {
+            let (range, int) = property_range(property::at(k as u32));
             any_params[base + k] = range;
             integer[base + k] = int;
         }
@@ -843,7 +842,7 @@ fn used_ranges(expr: &Expr, base: usize, ranges: &[Interval], integer: &[bool]) 
         .filter(|&&s| (s as usize) >= base && (s as usize) < ranges.len())
         .filter(|&&s| ranges[s as usize] != Interval::finite())
         .map(|&s| {
-            let p = property_from_index(s - base as u32);
+            let p = property::at(s - base as u32);
             let name = property_name(p);
             let r = ranges[s as usize];
             let kind = if integer[s as usize] {
@@ -858,52 +857,17 @@ fn used_ranges(expr: &Expr, base: usize, ranges: &[Interval], integer: &[bool]) 
 }
 
 /// The name a condition uses for a property.
-fn property_name(p: Property) -> String {
-    use Property::*;
-    let axis = |i: usize| ["x", "y", "z"][i.min(2)];
-    match p {
-        Id => "id".into(),
-        Random => "random".into(),
-        Position(i) => format!("pos.{}", axis(i)),
-        Center(i) => format!("center.{}", axis(i)),
-        Normal(i) => format!("normal.{}", axis(i)),
-        Min(i) => format!("min.{}", axis(i)),
-        Max(i) => format!("max.{}", axis(i)),
-        Direction(i) => format!("dir.{}", axis(i)),
-        PrePosition(i) => format!("pre.{}", axis(i)),
-        PostPosition(i) => format!("post.{}", axis(i)),
-        Relative(i) => format!("rel.{}", axis(i)),
-        RelativeLength => "rel.length".into(),
-        RelativeArea => "rel.area".into(),
-        Age => "age".into(),
-        Generation => "generation".into(),
-        Radius => "radius".into(),
-        OutEdges => "out_edges".into(),
-        InEdges => "in_edges".into(),
-        EdgeNeighborEdges | EdgeNeighbors => "neighbors".into(),
-        PreLength => "pre.length".into(),
-        Length => "length".into(),
-        Area => "area".into(),
-        Sides => "sides".into(),
-        Degree => "degree".into(),
-        FaceCount => "faces".into(),
-        VertNeighbors => "vert_neighbors".into(),
-    }
+fn property_name(p: Property) -> &'static str {
+    property::row(p).name
 }
 
 /// The values a property can take, and whether it is an integer.
 fn property_range(p: Property) -> (Interval, bool) {
-    use Property::*;
-    let nonneg = Interval::new(0.0, f64::INFINITY);
-    match p {
-        Id | Degree | FaceCount | EdgeNeighbors | VertNeighbors | OutEdges | InEdges
-        | EdgeNeighborEdges | Age => (nonneg, true),
-        Sides => (Interval::new(3.0, f64::INFINITY), true),
-        Generation => (Interval::new(1.0, f64::INFINITY), true),
-        Random => (Interval::new(0.0, next_down(1.0)), false),
-        Length | Area | PreLength | RelativeLength | RelativeArea => (nonneg, false),
-        Normal(_) | Direction(_) => (Interval::new(-1.0, 1.0), false),
-        _ => (Interval::finite(), false),
+    match property::row(p).range {
+        property::Range::Finite => (Interval::finite(), false),
+        property::Range::AtLeast { min, integer } => (Interval::new(min, f64::INFINITY), integer),
+        property::Range::Between { min, max } => (Interval::new(min, max), false),
+        property::Range::Unit => (Interval::new(0.0, next_down(1.0)), false),
     }
 }
 
