@@ -194,7 +194,7 @@ fn single(plan: &Plan, produced: &mut [Produced]) -> Result<(), Failure> {
         }
     }
     if let Some(path) = &args.contact_sheet {
-        let png = contact_sheet(args, &plan.variants, &produced)?;
+        let png = contact_sheet(args, &plan.variants, produced)?;
         staged.stage(path, &png).map_err(|e| cannot(path, e))?;
     }
     staged.commit().map_err(|(path, e)| cannot(&path, e))?;
