@@ -230,17 +230,11 @@ fn bad_files_fail_validation() {
 }
 
 /// Minimal valid value of every operator.
-fn minimal(op: &str) -> &'static str {
-    match op {
-        "import" => "{ path = \"mesh.obj\" }",
-        "translate" => "{ offset = 1 }",
-        "rotate" => "{ angle = 10 }",
-        "scale" => "{ factor = 2 }",
-        "inset_faces" | "inset_region" => "{ thickness = 0.1 }",
-        "merge" => "{ distance = 0.1 }",
-        _ => "{}",
-    }
-}
+/// What every operator's example needs besides a cube: a NURBS surface
+/// named `patch` (the example's import names `mesh.obj`, which compiling
+/// does not read).
+const EXAMPLE_CONTEXT: &str =
+    "[nurbs.patch]\ndegree = [1, 1]\nsize = [2, 2]\npoints = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]\n";
 
 /// For every operator and every `on` value and step key, the schema accepts
 /// a step exactly when the compiler does.
@@ -262,11 +256,41 @@ fn schema_agrees_with_the_compiler_on_every_operator() {
         "on_intersection = \"skip\"\n",
         "repeat = 2\n",
     ];
-    for op in graftal::rules::operators::names() {
+    for def in graftal::rules::operators::OPERATORS {
+        let op = def.name;
+        assert!(
+            def.example.starts_with('{') && def.example.ends_with('}'),
+            "`{op}`: its registry example is an inline table"
+        );
+        // An operator that tags its products is sampled with a part (which
+        // `assign` needs); one that does not must refuse one.
+        let tagged = |part: &str| {
+            format!(
+                "[start]\ncube = {{}}\n[[step]]\n{part}{op} = {}\n{EXAMPLE_CONTEXT}",
+                def.example
+            )
+        };
+        if !def.tags {
+            let text = tagged("part = \"sample\"\n");
+            let file = SourceFile {
+                name: "t.toml".into(),
+                text,
+            };
+            let result = compile::parse(&file, SourceFormat::Toml)
+                .and_then(|ast| compile::compile(&file, &ast, &[], Path::new(".")));
+            match result {
+                Err(e) if e.headline().contains("creates no faces") => {}
+                other => mismatches.push(format!(
+                    "`{op}` says it tags nothing, but a part on it: {:?}",
+                    other.err().map(|e| e.headline())
+                )),
+            }
+        }
+        let part = if def.tags { "part = \"sample\"\n" } else { "" };
         for variant in variants {
             let text = format!(
-                "[start]\ncube = {{}}\n[[step]]\nname = \"first\"\ntriangulate = {{}}\n[[step]]\n{variant}{op} = {}\n",
-                minimal(op)
+                "[start]\ncube = {{}}\n[[step]]\nname = \"first\"\ntriangulate = {{}}\n[[step]]\n{variant}{part}{op} = {}\n{EXAMPLE_CONTEXT}",
+                def.example
             );
             let file = SourceFile {
                 name: "t.toml".into(),
@@ -275,6 +299,20 @@ fn schema_agrees_with_the_compiler_on_every_operator() {
             let compiled = compile::parse(&file, SourceFormat::Toml)
                 .and_then(|ast| compile::compile(&file, &ast, &[], Path::new(".")));
             let valid = v.is_valid(&toml_json(&text));
+            // Every row's example compiles (building its typed arguments:
+            // a field the registry and `OpArgs` disagree on panics here)
+            // and is valid to the schema.
+            if variant.is_empty() && !(compiled.is_ok() && valid) {
+                mismatches.push(format!(
+                    "`{op}`'s registry example {}: compiler {}, schema {}",
+                    def.example,
+                    compiled
+                        .as_ref()
+                        .err()
+                        .map_or("accepts".into(), |e| e.headline()),
+                    if valid { "accepts" } else { "rejects" },
+                ));
+            }
             if compiled.is_ok() != valid {
                 mismatches.push(format!(
                     "{op} with {variant:?}: compiler {}, schema {} ({})",
@@ -606,4 +644,30 @@ fn every_property_is_documented() {
             row.name
         );
     }
+}
+
+/// The fuzzer's dictionary knows every operator, parameter and property
+/// (the file is kept by hand; this test keeps it complete).
+#[test]
+fn the_fuzz_dictionary_is_current() {
+    let dict = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/rules.dict"),
+    )
+    .unwrap();
+    let mut missing = Vec::new();
+    let words = graftal::rules::operators::OPERATORS
+        .iter()
+        .flat_map(|d| std::iter::once(d.name).chain(d.params.iter().map(|p| p.key)))
+        .chain(graftal::rules::property::ROWS.iter().map(|r| r.name));
+    for word in words {
+        if !dict.contains(&format!("\"{word}\"")) {
+            missing.push(word);
+        }
+    }
+    missing.sort();
+    missing.dedup();
+    assert!(
+        missing.is_empty(),
+        "fuzz/rules.dict lacks {missing:?}: add each as \"word\", \"word = \" and \"word: \""
+    );
 }

@@ -22,7 +22,8 @@ use crate::kernel::build::KernelBuilder;
 use crate::kernel::ops::delete::{self, DeleteMode};
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
-use crate::rules::program::Call;
+use crate::rules::op_args::{self as args, BooleanOp, MeshingArgs, SkinArgs};
+use crate::rules::program::Scalar;
 use crate::rules::sdf_tree::tree_limits;
 use crate::rules::sdf_tree::{BuiltTree, SdfForest};
 use crate::sdf::{
@@ -216,10 +217,11 @@ pub(super) struct FieldApplied {
 pub(super) fn create(
     ctx: &FieldContext,
     mesh: &mut Mesh,
-    call: &Call,
+    tree: usize,
+    meshing: &MeshingArgs,
 ) -> Result<FieldApplied, StepError> {
-    let (built, mut warnings) = build(ctx, call)?;
-    let (out, check) = mesh_built(ctx, call, &built)?;
+    let (built, mut warnings) = build(ctx, tree)?;
+    let (out, check) = mesh_built(ctx, meshing, &built)?;
     let mut stats = FieldStats::of(&out, &check, &[1.0]);
     stats.sign = signs(&built, &mut warnings);
     let made = append(mesh, &out, DMat3::IDENTITY, DVec3::ZERO)?;
@@ -236,16 +238,15 @@ pub(super) fn create(
 pub(super) fn place_parts(
     ctx: &FieldContext,
     mesh: &mut Mesh,
-    call: &Call,
+    (tree, relative, meshing): (usize, bool, &MeshingArgs),
     domain: Domain,
     selected: &[usize],
 ) -> Result<FieldApplied, StepError> {
-    let relative = call.flag("relative") == Some(true);
     let placements: Vec<(DMat3, DVec3, f64)> = selected
         .iter()
         .map(|&i| placement(mesh, domain, i, relative))
         .collect();
-    let (built, mut warnings) = build(ctx, call)?;
+    let (built, mut warnings) = build(ctx, tree)?;
     if placements.is_empty() {
         return Ok(FieldApplied {
             made: Selection::new(),
@@ -254,7 +255,7 @@ pub(super) fn place_parts(
             replaced: false,
         });
     }
-    let (out, check) = mesh_built(ctx, call, &built)?;
+    let (out, check) = mesh_built(ctx, meshing, &built)?;
     let per_copy = primitives_of(&out);
     let coming = per_copy.saturating_mul(placements.len() as u64);
     if coming > ctx.budget {
@@ -291,9 +292,9 @@ pub(super) fn place_parts(
 pub(super) fn boolean(
     ctx: &FieldContext,
     mesh: &mut Mesh,
-    call: &Call,
+    (tree, operation, blend, meshing): (usize, BooleanOp, &Scalar, &MeshingArgs),
 ) -> Result<FieldApplied, StepError> {
-    let (mut built, mut warnings) = build(ctx, call)?;
+    let (mut built, mut warnings) = build(ctx, tree)?;
     let current = mesh.to_indexed();
     let triangles = current.triangles();
     if triangles.is_empty() {
@@ -318,31 +319,31 @@ pub(super) fn boolean(
         ));
     }
     let model = built.tree.push(Node::Mesh(Arc::new(field)));
-    let blend = call.scalar("blend").map_or(0.0, |e| e.eval(ctx.slots));
+    let blend = blend.eval(ctx.slots);
     let tool = built.root;
-    let combined = match (call.choice("operation"), blend > 0.0) {
-        (Some("union"), false) => Node::Union(vec![model, tool]),
-        (Some("union"), true) => Node::SmoothUnion {
+    let combined = match (operation, blend > 0.0) {
+        (BooleanOp::Union, false) => Node::Union(vec![model, tool]),
+        (BooleanOp::Union, true) => Node::SmoothUnion {
             children: vec![model, tool],
             k: blend,
         },
-        (Some("intersection"), false) => Node::Intersection(vec![model, tool]),
-        (Some("intersection"), true) => Node::SmoothIntersection {
+        (BooleanOp::Intersection, false) => Node::Intersection(vec![model, tool]),
+        (BooleanOp::Intersection, true) => Node::SmoothIntersection {
             children: vec![model, tool],
             k: blend,
         },
-        (_, false) => Node::Difference {
+        (BooleanOp::Difference, false) => Node::Difference {
             base: model,
             subtract: vec![tool],
         },
-        (_, true) => Node::SmoothDifference {
+        (BooleanOp::Difference, true) => Node::SmoothDifference {
             base: model,
             subtract: vec![tool],
             k: blend,
         },
     };
     built.root = built.tree.push(combined);
-    let (out, check) = mesh_built(ctx, call, &built)?;
+    let (out, check) = mesh_built(ctx, meshing, &built)?;
     let mut stats = FieldStats::of(&out, &check, &[1.0]);
     sign.extend(signs(&built, &mut warnings));
     sign.dedup();
@@ -367,11 +368,11 @@ pub(super) fn boolean(
 pub(super) fn skin(
     ctx: &FieldContext,
     mesh: &mut Mesh,
-    call: &Call,
+    args: &SkinArgs,
 ) -> Result<FieldApplied, StepError> {
     let options = ops::skin::SkinOptions {
         sides: 3,
-        default_radius: call.scalar("radius").map_or(0.1, |e| e.eval(ctx.slots)),
+        default_radius: args.radius.eval(ctx.slots),
         joints: false,
     };
     let wires: Vec<EdgeId> = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).collect();
@@ -382,7 +383,7 @@ pub(super) fn skin(
     );
     nodes.sort_unstable();
     nodes.dedup();
-    let thinnest = call.scalar("min_radius").map_or(0.0, |e| e.eval(ctx.slots));
+    let thinnest = args.min_radius.as_ref().map_or(0.0, |e| e.eval(ctx.slots));
     let mut skeleton = Skeleton::default();
     for &v in &nodes {
         skeleton.nodes.push(SkinNode {
@@ -410,15 +411,16 @@ pub(super) fn skin(
         .nodes
         .iter()
         .fold(f64::INFINITY, |m, n| m.min(n.radius));
-    let blend = call
-        .scalar("blend")
+    let blend = args
+        .blend
+        .as_ref()
         .map_or(0.5 * min_radius, |e| e.eval(ctx.slots));
     let skin_options = SkinOptions {
         blend,
-        cell: call.scalar("cell").map(|e| e.eval(ctx.slots)),
+        cell: args.meshing.cell.as_ref().map(|e| e.eval(ctx.slots)),
         mesh: MeshOptions {
             resolution: Resolution::CellsPerAxis(1),
-            ..mesh_options(ctx, call)?
+            ..mesh_options(ctx, &args.meshing)?
         },
     };
     let skinned = sdf::skin(&skeleton, &skin_options).map_err(|e| field_error("the skin", e))?;
@@ -428,7 +430,7 @@ pub(super) fn skin(
         solids: skinned.solids,
         cavities: skinned.cavities,
     });
-    if call.flag("keep_wires") != Some(true) {
+    if !args.keep_wires {
         let wire_selection = Selection::from_parts(Vec::new(), wires, Vec::new());
         delete::delete(mesh, &wire_selection, DeleteMode::All)?;
         nodes.retain(|&v| mesh.contains_vert(v) && mesh.vert_edges(v).next().is_none());
@@ -445,8 +447,7 @@ pub(super) fn skin(
 }
 
 /// The step's tree, built with the step's parameter values.
-fn build(ctx: &FieldContext, call: &Call) -> Result<(BuiltTree, Vec<String>), StepError> {
-    let root = call.tree("tree").expect("required");
+fn build(ctx: &FieldContext, root: usize) -> Result<(BuiltTree, Vec<String>), StepError> {
     let mut fields = |resource: usize, sign: SignMode, y_up: bool| {
         ctx.inputs
             .get(resource)
@@ -463,14 +464,14 @@ fn build(ctx: &FieldContext, call: &Call) -> Result<(BuiltTree, Vec<String>), St
 /// Compiles and meshes a built tree, then checks the result.
 fn mesh_built(
     ctx: &FieldContext,
-    call: &Call,
+    meshing: &MeshingArgs,
     built: &BuiltTree,
 ) -> Result<(MeshOutput, MeshCheck), StepError> {
     let tape = Tape::compile(&built.tree, built.root, &tree_limits()).map_err(|e| {
         let located = ctx.sdf.locate(built, &e);
         StepError::Tree(ctx.sdf.describe(&located))
     })?;
-    let out = sdf::mesh(&tape, &mesh_options(ctx, call)?).map_err(|e| match e {
+    let out = sdf::mesh(&tape, &mesh_options(ctx, meshing)?).map_err(|e| match e {
         SdfError::EmptyBounds { .. } | SdfError::Unbounded { .. } => {
             let located = ctx.sdf.locate(built, &e);
             StepError::Tree(ctx.sdf.describe(&located))
@@ -509,11 +510,10 @@ fn field_error(what: &str, error: SdfError) -> StepError {
     }
 }
 
-/// The meshing parameters of `call`.
-fn mesh_options(ctx: &FieldContext, call: &Call) -> Result<MeshOptions, StepError> {
-    let value = |key: &str| call.scalar(key).map(|e| e.eval(ctx.slots));
-    let has = |key: &str| call.def.param(key).is_some();
-    let resolution = match (has("cell").then(|| value("cell")).flatten(), has("cells")) {
+/// The meshing parameters of a step.
+fn mesh_options(ctx: &FieldContext, meshing: &MeshingArgs) -> Result<MeshOptions, StepError> {
+    let value = |e: &Option<crate::rules::program::Scalar>| e.as_ref().map(|e| e.eval(ctx.slots));
+    let resolution = match (value(&meshing.cell), value(&meshing.cells)) {
         (Some(h), _) if !(h.is_finite() && h > 0.0) => {
             return Err(StepError::Option {
                 key: "cell",
@@ -521,14 +521,11 @@ fn mesh_options(ctx: &FieldContext, call: &Call) -> Result<MeshOptions, StepErro
             })
         }
         (Some(h), _) => Resolution::CellSize(h),
-        (None, true) => match value("cells") {
-            Some(n) => Resolution::CellsPerAxis(count("cells", n)?.max(1)),
-            None => Resolution::CellsPerAxis(DEFAULT_CELLS),
-        },
-        (None, false) => Resolution::CellsPerAxis(DEFAULT_CELLS),
+        (None, Some(n)) => Resolution::CellsPerAxis(count("cells", n)?.max(1)),
+        (None, None) => Resolution::CellsPerAxis(DEFAULT_CELLS),
     };
-    let domain = match call.def.param("domain").and_then(|_| call.bounds("domain")) {
-        Some([lo, hi]) => {
+    let domain = match &meshing.domain {
+        Some(corners) => {
             let v = |x: &crate::rules::program::Vector| {
                 DVec3::new(
                     x.0[0].eval(ctx.slots),
@@ -536,7 +533,7 @@ fn mesh_options(ctx: &FieldContext, call: &Call) -> Result<MeshOptions, StepErro
                     x.0[2].eval(ctx.slots),
                 )
             };
-            let (lo, hi) = (v(lo), v(hi));
+            let (lo, hi) = (v(&corners[0]), v(&corners[1]));
             if !(lo.is_finite() && hi.is_finite() && lo.cmplt(hi).all()) {
                 return Err(StepError::Option {
                     key: "domain",
@@ -549,29 +546,29 @@ fn mesh_options(ctx: &FieldContext, call: &Call) -> Result<MeshOptions, StepErro
         }
         None => None,
     };
-    let padding = match has("padding").then(|| value("padding")).flatten() {
+    let padding = match value(&meshing.padding) {
         Some(p) => count("padding", p)?,
         None => 1,
     };
     Ok(MeshOptions {
-        mesher: match call.choice("mesher") {
-            Some("dual_contouring") => Mesher::DualContouring,
-            _ => Mesher::MarchingCubes,
+        mesher: match meshing.mesher {
+            args::Mesher::DualContouring => Mesher::DualContouring,
+            args::Mesher::MarchingCubes => Mesher::MarchingCubes,
         },
-        grid: match has("grid").then(|| call.choice("grid")).flatten() {
-            Some("lattice") => GridKind::Lattice,
-            Some("linspace") => GridKind::Linspace,
-            _ => GridKind::LatticeHalf,
+        grid: match meshing.grid {
+            args::GridKind::Lattice => GridKind::Lattice,
+            args::GridKind::Linspace => GridKind::Linspace,
+            args::GridKind::LatticeHalf => GridKind::LatticeHalf,
         },
         resolution,
         domain,
         padding,
-        vertex: match call.choice("vertex") {
-            Some("midpoint") => VertexPlacement::Midpoint,
-            Some("refine") => VertexPlacement::Refine {
+        vertex: match meshing.vertex {
+            args::VertexPlacement::Midpoint => VertexPlacement::Midpoint,
+            args::VertexPlacement::Refine => VertexPlacement::Refine {
                 steps: REFINE_STEPS,
             },
-            _ => VertexPlacement::Linear,
+            args::VertexPlacement::Linear => VertexPlacement::Linear,
         },
         limits: MeshLimits {
             max_cells: ctx.max_cells,

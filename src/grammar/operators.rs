@@ -2,8 +2,9 @@
 //! whole-mesh operators ([`crate::rules::operators`]): for each [`OpId`],
 //! what it makes at most (checked against the primitive limit before it
 //! allocates anything) and what it does. Dispatch is an exhaustive `match`
-//! on the identity, so a registered operator without an implementation
-//! does not compile. G³ commands and compounds run in [`super::run`].
+//! on the typed arguments ([`OpArgs`]), so a registered operator without
+//! an implementation does not compile, and no argument is looked up by
+//! name. G³ commands and compounds run in [`super::run`].
 
 use glam::DVec3;
 
@@ -13,11 +14,11 @@ use super::graph;
 use super::surfaces;
 use crate::kernel::ops::delete::DeleteMode;
 use crate::kernel::ops::extrude::ExtrudeOffset;
-use crate::kernel::ops::select::Adjacency;
 use crate::kernel::ops::{self, Selection};
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::expr::Expr;
-use crate::rules::operators::OpId;
+use crate::rules::op_args::{Adjacency, Axis, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod, UpAxis};
+use crate::rules::operators::Reads;
 use crate::rules::program::{Call, Resource, Vector};
 use crate::rules::sdf_tree::SdfForest;
 
@@ -105,8 +106,8 @@ impl Context<'_> {
         }
     }
 
-    fn offset(&self, call: &Call) -> ExtrudeOffset {
-        match (call.vector("offset"), call.scalar("distance")) {
+    fn offset(&self, args: &ExtrudeArgs) -> ExtrudeOffset {
+        match (&args.offset, &args.distance) {
             (Some(v), _) => ExtrudeOffset::Vector(self.vector(v)),
             (None, Some(d)) => ExtrudeOffset::Normal(self.scalar(d)),
             (None, None) => ExtrudeOffset::None,
@@ -169,7 +170,7 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         by_domain: selection_of(ctx.domain, selected),
     };
     let m = u64::saturating_mul;
-    let n = |key: &str| call.scalar(key).map_or(0, |e| ctx.predicted(e));
+    let n = |e: &Expr| ctx.predicted(e);
     let size = |s: &Selection| (s.verts.len() + s.edges.len() + s.faces.len()) as u64;
     let edge_count = || sel.edges().len() as u64;
     let vert_count = || match ctx.domain {
@@ -185,66 +186,63 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             .map(|&f| 4 * mesh.face_len(f) as u64 + 1)
             .fold(0, u64::saturating_add)
     };
-    match call.def.id {
-        OpId::Vertex => 1,
-        OpId::Circle => m(n("segments"), 2).saturating_add(1),
-        OpId::Grid => {
-            let p = call.pair("segments").expect("defaulted");
+    match &call.args {
+        OpArgs::Vertex { .. } => 1,
+        OpArgs::Circle { segments, .. } => m(n(segments), 2).saturating_add(1),
+        OpArgs::Grid { segments, .. } => {
             let (x, y) = (
-                ctx.predicted(&p[0]).saturating_add(1),
-                ctx.predicted(&p[1]).saturating_add(1),
+                n(&segments[0]).saturating_add(1),
+                n(&segments[1]).saturating_add(1),
             );
             m(m(x, y), 4)
         }
-        OpId::Cube => 26,
-        OpId::NurbsPatch => {
-            let n = patch_cells(call.scalar("cells").map_or(8.0, |e| ctx.scalar(e))) as u64 + 1;
+        OpArgs::Cube { .. } => 26,
+        OpArgs::NurbsPatch { cells, .. } => {
+            let n = patch_cells(ctx.scalar(cells)) as u64 + 1;
             m(sel.by_domain.faces.len() as u64, m(m(n, n), 4))
         }
-        OpId::UvSphere => m(m(n("segments"), n("rings").saturating_add(1)), 3).saturating_add(2),
-        OpId::Cylinder | OpId::Cone => m(n("segments"), 6).saturating_add(2),
-        OpId::Import => call
-            .resource("path")
-            .and_then(|r| ctx.inputs.get(r))
-            .map_or(0, |input| {
-                let mesh = &input.mesh;
-                (mesh.positions.len() + 2 * mesh.face_indices.len() + mesh.lines.len()) as u64
-            }),
-        OpId::ExtrudeVerts => m(vert_count(), 2),
-        OpId::ExtrudeEdges => m(edge_count(), 6),
-        OpId::ExtrudeFaces | OpId::ExtrudeRegion | OpId::InsetFaces | OpId::InsetRegion => rings(),
-        OpId::SplitEdges => match call.list("ratios") {
+        OpArgs::UvSphere {
+            segments, rings, ..
+        } => m(m(n(segments), n(rings).saturating_add(1)), 3).saturating_add(2),
+        OpArgs::Cylinder { segments, .. } | OpArgs::Cone { segments, .. } => {
+            m(n(segments), 6).saturating_add(2)
+        }
+        OpArgs::Import { path, .. } => ctx.inputs.get(*path).map_or(0, |input| {
+            let mesh = &input.mesh;
+            (mesh.positions.len() + 2 * mesh.face_indices.len() + mesh.lines.len()) as u64
+        }),
+        OpArgs::ExtrudeVerts(_) => m(vert_count(), 2),
+        OpArgs::ExtrudeEdges(_) => m(edge_count(), 6),
+        OpArgs::ExtrudeFaces(_)
+        | OpArgs::ExtrudeRegion(_)
+        | OpArgs::InsetFaces(_)
+        | OpArgs::InsetRegion(_) => rings(),
+        OpArgs::SplitEdges { cuts, ratios } => match ratios {
             Some(ratios) => m(m(edge_count(), ratios.len() as u64), 2),
-            None => m(
-                m(
-                    edge_count(),
-                    call.scalar("cuts").map_or(1, |e| ctx.predicted(e)),
-                ),
-                2,
-            ),
+            None => m(m(edge_count(), cuts.as_ref().map_or(1, n)), 2),
         },
         // n - 3 diagonals and n - 2 triangles for the one face removed.
-        OpId::Triangulate => sel
+        OpArgs::Triangulate => sel
             .by_domain
             .faces
             .iter()
             .map(|&f| 2 * (mesh.face_len(f) as u64).saturating_sub(3))
             .fold(0, u64::saturating_add),
-        OpId::Duplicate | OpId::Mirror => size(&sel.full()),
-        OpId::MakeFace => 1,
+        OpArgs::Duplicate | OpArgs::Mirror { .. } => size(&sel.full()),
+        OpArgs::MakeFace => 1,
         // Meshing a field cannot be predicted; the mesher stops at the budget.
-        OpId::Sdf
-        | OpId::SdfPart
-        | OpId::SdfBoolean
-        | OpId::Nurbs
-        | OpId::NurbsPart
-        | OpId::PnSmooth => 0,
-        OpId::Skin if is_field_skin(call) => 0,
-        OpId::Skin => {
-            let s = n("sides");
+        OpArgs::Sdf { .. }
+        | OpArgs::SdfPart { .. }
+        | OpArgs::SdfBoolean { .. }
+        | OpArgs::Nurbs(_)
+        | OpArgs::NurbsPart { .. }
+        | OpArgs::PnSmooth { .. } => 0,
+        OpArgs::Skin(skin) if skin.method == SkinMethod::Field => 0,
+        OpArgs::Skin(skin) => {
+            let s = n(&skin.sides);
             let wires = mesh.edge_ids().filter(|&e| mesh.is_wire_edge(e)).count() as u64;
             let tubes = m(wires, m(s, 6).saturating_add(2));
-            let spheres = if call.flag("joints") == Some(true) {
+            let spheres = if skin.joints {
                 m(
                     mesh.vert_count() as u64,
                     m(m(s, (s / 2).max(2)), 3).saturating_add(2),
@@ -254,24 +252,17 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             };
             tubes.saturating_add(spheres)
         }
-        OpId::Translate
-        | OpId::Rotate
-        | OpId::Scale
-        | OpId::Assign
-        | OpId::Reverse
-        | OpId::RecomputeNormals
-        | OpId::Delete
-        | OpId::DissolveEdges
-        | OpId::Merge
-        | OpId::RegionExtend
-        | OpId::RegionReduce => 0,
-        OpId::CreateEdge
-        | OpId::SplitEdge
-        | OpId::CreateFace
-        | OpId::SplitFace
-        | OpId::EditNode => {
-            unreachable!("G³ commands are no calls")
-        }
+        OpArgs::Translate { .. }
+        | OpArgs::Rotate { .. }
+        | OpArgs::Scale { .. }
+        | OpArgs::Assign
+        | OpArgs::Reverse
+        | OpArgs::RecomputeNormals { .. }
+        | OpArgs::Delete { .. }
+        | OpArgs::DissolveEdges
+        | OpArgs::Merge { .. }
+        | OpArgs::RegionExtend { .. }
+        | OpArgs::RegionReduce { .. } => 0,
     }
 }
 
@@ -292,38 +283,76 @@ pub(super) fn apply(
         budget: ctx.budget,
         uses_graph: ctx.uses_graph,
     };
-    match call.def.id {
-        OpId::Sdf => return fields::create(&field_ctx(), mesh, call).map(Applied::from),
-        OpId::Nurbs | OpId::NurbsPart | OpId::PnSmooth => {
-            let surface_ctx = surfaces::SurfaceContext {
-                slots: ctx.slots,
-                surfaces: ctx.nurbs,
-                budget: ctx.budget,
-                uses_graph: ctx.uses_graph,
-            };
-            let (made, stats) = match call.def.id {
-                OpId::Nurbs => surfaces::create(&surface_ctx, mesh, call)?,
-                OpId::NurbsPart => {
-                    surfaces::place_parts(&surface_ctx, mesh, call, ctx.domain, selected)?
-                }
-                _ => surfaces::pn_smooth(&surface_ctx, mesh, call)?,
-            };
-            return Ok(Applied {
-                made,
-                applied: None,
-                field: None,
-                surface: Some(stats),
-                warnings: Vec::new(),
-                replaced: call.def.id == OpId::PnSmooth,
-            });
+    let surface_ctx = || surfaces::SurfaceContext {
+        slots: ctx.slots,
+        surfaces: ctx.nurbs,
+        budget: ctx.budget,
+        uses_graph: ctx.uses_graph,
+    };
+    let surfaced = |(made, stats): (Selection, surfaces::SurfaceStats), replaced: bool| Applied {
+        made,
+        applied: None,
+        field: None,
+        surface: Some(stats),
+        warnings: Vec::new(),
+        replaced,
+    };
+    match &call.args {
+        OpArgs::Sdf { tree, meshing } => {
+            return fields::create(&field_ctx(), mesh, *tree, meshing).map(Applied::from)
         }
-        OpId::SdfPart => {
-            return fields::place_parts(&field_ctx(), mesh, call, ctx.domain, selected)
+        OpArgs::SdfPart {
+            tree,
+            relative,
+            meshing,
+        } => {
+            return fields::place_parts(
+                &field_ctx(),
+                mesh,
+                (*tree, *relative, meshing),
+                ctx.domain,
+                selected,
+            )
+            .map(Applied::from)
+        }
+        OpArgs::SdfBoolean {
+            tree,
+            operation,
+            blend,
+            meshing,
+        } => {
+            return fields::boolean(&field_ctx(), mesh, (*tree, *operation, blend, meshing))
                 .map(Applied::from)
         }
-        OpId::SdfBoolean => return fields::boolean(&field_ctx(), mesh, call).map(Applied::from),
-        OpId::Skin if is_field_skin(call) => {
-            return fields::skin(&field_ctx(), mesh, call).map(Applied::from)
+        OpArgs::Skin(skin) if skin.method == SkinMethod::Field => {
+            return fields::skin(&field_ctx(), mesh, skin).map(Applied::from)
+        }
+        OpArgs::Nurbs(args) => {
+            return Ok(surfaced(
+                surfaces::create(&surface_ctx(), mesh, args)?,
+                false,
+            ))
+        }
+        OpArgs::NurbsPart {
+            tessellate,
+            relative,
+        } => {
+            let placed = surfaces::place_parts(
+                &surface_ctx(),
+                mesh,
+                (tessellate, *relative),
+                ctx.domain,
+                selected,
+            )?;
+            return Ok(surfaced(placed, false));
+        }
+        OpArgs::PnSmooth {
+            level,
+            pattern,
+            crease,
+        } => {
+            let smoothed = surfaces::pn_smooth(&surface_ctx(), mesh, (level, *pattern, crease))?;
+            return Ok(surfaced(smoothed, true));
         }
         _ => {}
     }
@@ -332,31 +361,29 @@ pub(super) fn apply(
         domain: ctx.domain,
         by_domain: selection_of(ctx.domain, selected),
     };
-    // What the implementation needs of the selection, before it borrows
-    // the mesh mutably.
-    let (verts, edges, full) = match call.def.id {
-        OpId::Translate | OpId::Rotate | OpId::Scale | OpId::ExtrudeVerts | OpId::Merge => {
-            (sel.verts(), Vec::new(), Selection::new())
+    // What the implementation reads of the selection (its registry row
+    // says), before it borrows the mesh mutably.
+    let (verts, edges, full) = match call.def.reads {
+        Reads::Verts => (sel.verts(), Vec::new(), Selection::new()),
+        Reads::Edges => (Vec::new(), sel.edges(), Selection::new()),
+        Reads::Everything => (Vec::new(), Vec::new(), sel.full()),
+        Reads::EverythingUnlessFaces if ctx.domain != Domain::Face => {
+            (Vec::new(), Vec::new(), sel.full())
         }
-        OpId::ExtrudeEdges | OpId::SplitEdges | OpId::DissolveEdges | OpId::MakeFace => {
-            (Vec::new(), sel.edges(), Selection::new())
+        Reads::EverythingUnlessFaces | Reads::Selection | Reads::Nothing => {
+            (Vec::new(), Vec::new(), Selection::new())
         }
-        OpId::Duplicate | OpId::Mirror => (Vec::new(), Vec::new(), sel.full()),
-        OpId::Delete if ctx.domain != Domain::Face => (Vec::new(), Vec::new(), sel.full()),
-        _ => (Vec::new(), Vec::new(), Selection::new()),
     };
     let faces_list = sel.by_domain.faces.clone();
     let by_domain = sel.by_domain;
     let moved = |vs: Vec<VertId>| Selection::from_parts(vs, Vec::new(), Vec::new());
-    let s = |key: &str| ctx.scalar(call.scalar(key).expect("defaulted"));
-    let v = |key: &str| ctx.vector(call.vector(key).expect("defaulted"));
-    let count =
-        |key: &str, what: &'static str| ctx.count(call.scalar(key).expect("defaulted"), what);
+    let s = |e: &Expr| ctx.scalar(e);
+    let v = |x: &Vector| ctx.vector(x);
     let mut applied = None;
-    let made = match call.def.id {
-        OpId::Vertex => {
-            let made = create::create_vert(mesh, v("at"))?;
-            if let Some(r) = call.scalar("radius") {
+    let made = match &call.args {
+        OpArgs::Vertex { at, radius } => {
+            let made = create::create_vert(mesh, v(at))?;
+            if let Some(r) = radius {
                 graph::ensure_layers(mesh);
                 for &w in &made.verts {
                     graph::set_radius(mesh, w, ctx.scalar(r));
@@ -364,59 +391,68 @@ pub(super) fn apply(
             }
             made
         }
-        OpId::Circle => create::create_circle(
+        OpArgs::Circle {
+            segments,
+            radius,
+            fill,
+        } => create::create_circle(mesh, ctx.count(segments, "segments")?, s(radius), *fill)?,
+        OpArgs::Grid { segments, size } => create::create_grid(
             mesh,
-            count("segments", "segments")?,
-            s("radius"),
-            call.flag("fill") == Some(true),
+            ctx.count(&segments[0], "segments")?,
+            ctx.count(&segments[1], "segments")?,
+            s(&size[0]),
+            s(&size[1]),
         )?,
-        OpId::Grid => {
-            let p = call.pair("segments").expect("defaulted");
-            let size = call.pair("size").expect("defaulted");
-            create::create_grid(
-                mesh,
-                ctx.count(&p[0], "segments")?,
-                ctx.count(&p[1], "segments")?,
-                ctx.scalar(&size[0]),
-                ctx.scalar(&size[1]),
-            )?
-        }
-        OpId::Cube => create::create_cube(mesh, s("size"))?,
-        OpId::UvSphere => create::create_uv_sphere(
+        OpArgs::Cube { size } => create::create_cube(mesh, s(size))?,
+        OpArgs::UvSphere {
+            segments,
+            rings,
+            radius,
+        } => create::create_uv_sphere(
             mesh,
-            count("segments", "segments")?,
-            count("rings", "rings")?,
-            s("radius"),
+            ctx.count(segments, "segments")?,
+            ctx.count(rings, "rings")?,
+            s(radius),
         )?,
-        OpId::Cylinder => create::create_cylinder(
+        OpArgs::Cylinder {
+            segments,
+            radius,
+            radius_top,
+            depth,
+            caps,
+        } => create::create_cylinder(
             mesh,
-            count("segments", "segments")?,
-            s("radius"),
-            s("radius_top"),
-            s("depth"),
-            call.flag("caps") == Some(true),
+            ctx.count(segments, "segments")?,
+            s(radius),
+            s(radius_top),
+            s(depth),
+            *caps,
         )?,
-        OpId::Cone => create::create_cylinder(
+        OpArgs::Cone {
+            segments,
+            radius,
+            depth,
+            caps,
+        } => create::create_cylinder(
             mesh,
-            count("segments", "segments")?,
-            s("radius"),
+            ctx.count(segments, "segments")?,
+            s(radius),
             0.0,
-            s("depth"),
-            call.flag("caps") == Some(true),
+            s(depth),
+            *caps,
         )?,
-        OpId::Import => {
-            let resource = call.resource("path").expect("required");
-            let source = &ctx.resources[resource];
+        OpArgs::Import { path, weld, up } => {
+            let source = &ctx.resources[*path];
             let loaded = &ctx
                 .inputs
-                .get(resource)
+                .get(*path)
                 .ok_or_else(|| StepError::NotLoaded(source.written.clone()))?
                 .mesh;
-            let mut indexed = match call.scalar("weld") {
+            let mut indexed = match weld {
                 Some(d) => std::borrow::Cow::Owned(loaded.welded(ctx.scalar(d))),
                 None => std::borrow::Cow::Borrowed(&**loaded),
             };
-            if call.choice("up") == Some("y") {
+            if *up == UpAxis::Y {
                 indexed.to_mut().y_up_to_z_up();
             }
             // Built straight into the working mesh: no copy.
@@ -427,37 +463,40 @@ pub(super) fn apply(
                 }
             })?
         }
-        OpId::Translate => {
-            transform::translate(mesh, &verts, v("offset"))?;
+        OpArgs::Translate { offset } => {
+            transform::translate(mesh, &verts, v(offset))?;
             moved(verts)
         }
-        OpId::Rotate => {
-            let angle = s("angle").to_radians();
-            transform::rotate(mesh, &verts, v("center"), v("axis"), angle)?;
+        OpArgs::Rotate {
+            angle,
+            axis,
+            center,
+        } => {
+            let angle = s(angle).to_radians();
+            transform::rotate(mesh, &verts, v(center), v(axis), angle)?;
             moved(verts)
         }
-        OpId::Scale => {
-            transform::scale(mesh, &verts, v("center"), v("factor"))?;
+        OpArgs::Scale { factor, center } => {
+            transform::scale(mesh, &verts, v(center), v(factor))?;
             moved(verts)
         }
-        OpId::ExtrudeVerts => extrude::extrude_verts(mesh, &verts, ctx.offset(call))?,
-        OpId::ExtrudeEdges => extrude::extrude_edges(mesh, &edges, ctx.offset(call))?,
-        OpId::ExtrudeFaces => extrude::extrude_faces(
-            mesh,
-            &faces_list,
-            call.flag("keep_original") == Some(true),
-            ctx.offset(call),
-        )?,
-        OpId::ExtrudeRegion => extrude::extrude_face_region(
-            mesh,
-            &faces_list,
-            call.flag("keep_original") == Some(true),
-            ctx.offset(call),
-        )?,
-        OpId::InsetFaces => inset::inset_faces(mesh, &faces_list, s("thickness"), s("depth"))?,
-        OpId::NurbsPatch => {
-            let n = patch_cells(s("cells"));
-            let lift = s("lift");
+        OpArgs::ExtrudeVerts(e) => extrude::extrude_verts(mesh, &verts, ctx.offset(e))?,
+        OpArgs::ExtrudeEdges(e) => extrude::extrude_edges(mesh, &edges, ctx.offset(e))?,
+        OpArgs::ExtrudeFaces(e) => {
+            extrude::extrude_faces(mesh, &faces_list, e.keep_original, ctx.offset(e))?
+        }
+        OpArgs::ExtrudeRegion(e) => {
+            extrude::extrude_face_region(mesh, &faces_list, e.keep_original, ctx.offset(e))?
+        }
+        OpArgs::InsetFaces(i) => {
+            inset::inset_faces(mesh, &faces_list, s(&i.thickness), s(&i.depth))?
+        }
+        OpArgs::InsetRegion(i) => {
+            inset::inset_region(mesh, &faces_list, s(&i.thickness), s(&i.depth))?
+        }
+        OpArgs::NurbsPatch { lift, cells } => {
+            let n = patch_cells(s(cells));
+            let lift = s(lift);
             let mut place = |corners: [DVec3; 4], normal: DVec3, size: f64| {
                 surfaces::quad_patch_grid(corners, normal * (lift * size), n)
             };
@@ -465,36 +504,36 @@ pub(super) fn apply(
             applied = Some(filled);
             made
         }
-        OpId::InsetRegion => inset::inset_region(mesh, &faces_list, s("thickness"), s("depth"))?,
-        OpId::SplitEdges => match call.list("ratios") {
+        OpArgs::SplitEdges { cuts, ratios } => match ratios {
             Some(ratios) => {
-                let r: Vec<f64> = ratios.iter().map(|x| ctx.scalar(x)).collect();
+                let r: Vec<f64> = ratios.iter().map(s).collect();
                 split::split_edges_at(mesh, &edges, &r)?
             }
             None => {
-                let cuts = match call.scalar("cuts") {
+                let cuts = match cuts {
                     Some(c) => ctx.count(c, "cuts")?,
                     None => 1,
                 };
                 split::split_edges(mesh, &edges, cuts)?
             }
         },
-        OpId::Triangulate => faces::triangulate(mesh, &faces_list)?,
-        // The step tags what it returns (`grammar::asset::tag`).
-        OpId::Assign => Selection::from_parts(Vec::new(), edges.clone(), faces_list.clone()),
-        OpId::Reverse => {
+        OpArgs::Triangulate => faces::triangulate(mesh, &faces_list)?,
+        // The step tags what it returns (`grammar::asset::tag`): the
+        // selected faces, or edges.
+        OpArgs::Assign => by_domain,
+        OpArgs::Reverse => {
             faces::reverse_faces(mesh, &faces_list)?;
             Selection::from_parts(Vec::new(), Vec::new(), faces_list)
         }
-        OpId::RecomputeNormals => {
-            faces::recompute_normals(mesh, &faces_list, call.flag("outside") == Some(true))?;
+        OpArgs::RecomputeNormals { outside } => {
+            faces::recompute_normals(mesh, &faces_list, *outside)?;
             Selection::from_parts(Vec::new(), Vec::new(), faces_list)
         }
-        OpId::Delete => {
-            let mode = match call.choice("mode") {
-                Some("faces") => DeleteMode::Faces,
-                Some("faces_and_edges") => DeleteMode::FacesAndEdges,
-                _ => DeleteMode::All,
+        OpArgs::Delete { mode } => {
+            let mode = match mode {
+                DeleteKind::Faces => DeleteMode::Faces,
+                DeleteKind::FacesAndEdges => DeleteMode::FacesAndEdges,
+                DeleteKind::All => DeleteMode::All,
             };
             let s = if ctx.domain == Domain::Face {
                 by_domain
@@ -503,46 +542,51 @@ pub(super) fn apply(
             };
             delete::delete(mesh, &s, mode)?
         }
-        OpId::Duplicate => delete::duplicate(mesh, &full)?,
-        OpId::DissolveEdges => {
+        OpArgs::Duplicate => delete::duplicate(mesh, &full)?,
+        OpArgs::DissolveEdges => {
             let report = delete::dissolve_edges_report(mesh, &edges)?;
             applied = Some(report.dissolved);
             Selection::from_parts(Vec::new(), Vec::new(), report.faces)
         }
-        OpId::MakeFace => faces::make_face_from_edges(mesh, &edges)?,
-        OpId::Merge => {
-            let r = merge::merge_by_distance(mesh, &verts, s("distance"))?;
+        OpArgs::MakeFace => faces::make_face_from_edges(mesh, &edges)?,
+        OpArgs::Merge { distance } => {
+            let r = merge::merge_by_distance(mesh, &verts, s(distance))?;
             moved(r.survivors)
         }
-        OpId::Mirror => {
-            let normal = match call.choice("axis") {
-                Some("x") => DVec3::X,
-                Some("y") => DVec3::Y,
-                Some("z") => DVec3::Z,
-                _ => v("normal"),
+        OpArgs::Mirror {
+            axis,
+            normal,
+            point,
+            merge_distance,
+        } => {
+            let normal = match axis {
+                Some(Axis::X) => DVec3::X,
+                Some(Axis::Y) => DVec3::Y,
+                Some(Axis::Z) => DVec3::Z,
+                None => v(normal),
             };
-            merge::mirror(mesh, &full, v("point"), normal, s("merge_distance"))?
+            merge::mirror(mesh, &full, v(point), normal, s(merge_distance))?
         }
-        OpId::RegionExtend | OpId::RegionReduce => {
-            let by = match call.choice("by") {
-                Some("vert") => Adjacency::Vert,
-                _ => Adjacency::Edge,
+        OpArgs::RegionExtend { by } | OpArgs::RegionReduce { by } => {
+            let by = match by {
+                Adjacency::Vert => select::Adjacency::Vert,
+                Adjacency::Edge => select::Adjacency::Edge,
             };
-            let faces = if call.def.id == OpId::RegionExtend {
+            let faces = if matches!(call.args, OpArgs::RegionExtend { .. }) {
                 select::region_extend(mesh, &faces_list, by)
             } else {
                 select::region_reduce(mesh, &faces_list, by)
             };
             Selection::from_parts(Vec::new(), Vec::new(), faces)
         }
-        OpId::Skin => {
+        OpArgs::Skin(skin) => {
             let options = ops::skin::SkinOptions {
-                sides: count("sides", "sides")?,
-                default_radius: s("radius"),
-                joints: call.flag("joints") == Some(true),
+                sides: ctx.count(&skin.sides, "sides")?,
+                default_radius: s(&skin.radius),
+                joints: skin.joints,
             };
             let tubes = ops::skin::skin_wire_edges(mesh, &options)?;
-            if call.flag("keep_wires") != Some(true) {
+            if !skin.keep_wires {
                 let wires: Vec<EdgeId> =
                     mesh.edge_ids().filter(|&w| mesh.is_wire_edge(w)).collect();
                 let mut nodes: Vec<VertId> =
@@ -563,19 +607,12 @@ pub(super) fn apply(
                 map.faces.into_iter().flatten().collect(),
             )
         }
-        OpId::Sdf
-        | OpId::SdfPart
-        | OpId::SdfBoolean
-        | OpId::Nurbs
-        | OpId::NurbsPart
-        | OpId::PnSmooth => unreachable!("applied above"),
-        OpId::CreateEdge
-        | OpId::SplitEdge
-        | OpId::CreateFace
-        | OpId::SplitFace
-        | OpId::EditNode => {
-            unreachable!("G³ commands are no calls")
-        }
+        OpArgs::Sdf { .. }
+        | OpArgs::SdfPart { .. }
+        | OpArgs::SdfBoolean { .. }
+        | OpArgs::Nurbs(_)
+        | OpArgs::NurbsPart { .. }
+        | OpArgs::PnSmooth { .. } => unreachable!("applied above"),
     };
     Ok(Applied {
         made,
@@ -585,11 +622,6 @@ pub(super) fn apply(
         warnings: Vec::new(),
         replaced: false,
     })
-}
-
-/// Whether a `skin` step meshes a field (`method = "field"`).
-fn is_field_skin(call: &Call) -> bool {
-    call.choice("method") == Some("field")
 }
 
 /// `nurbs_patch`'s cells per side, from the parameter (bounded by the

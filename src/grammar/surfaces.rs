@@ -20,7 +20,8 @@ use crate::nurbs::surface::NurbsSurface;
 use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation};
 use crate::nurbs::tess::{Combine, EdgeTest};
 use crate::rules::nurbs_def::SurfaceDef;
-use crate::rules::program::Call;
+use crate::rules::op_args::{self, EdgeTestName, PnPattern, TessMode, TessellateArgs};
+use crate::rules::program::Scalar;
 
 /// What the parametric operators need of the run.
 pub(super) struct SurfaceContext<'a> {
@@ -74,21 +75,21 @@ fn triangle_cap(budget: u64) -> usize {
 /// tessellation.
 fn tessellate_call(
     ctx: &SurfaceContext,
-    call: &Call,
+    args: &TessellateArgs,
     copies: usize,
 ) -> Result<(Tessellation, SurfaceStats), StepError> {
-    let def = &ctx.surfaces[call.surface("surface").expect("required")];
+    let def = &ctx.surfaces[args.surface];
     let surface = def
         .build(ctx.surfaces, ctx.slots)
         .map_err(|e| StepError::Surface {
             surface: def.name.clone(),
             message: format!("{}: {}", e.key, e.message),
         })?;
-    let value = |key: &str| call.scalar(key).map(|e| e.eval(ctx.slots));
-    let tolerance = value("tolerance").unwrap_or(1e-3);
-    let mode = match call.choice("mode") {
-        Some("uniform") => {
-            let cells = match call.pair("cells") {
+    let value = |e: &Option<Scalar>| e.as_ref().map(|e| e.eval(ctx.slots));
+    let tolerance = value(&args.tolerance).unwrap_or(1e-3);
+    let mode = match args.mode {
+        TessMode::Uniform => {
+            let cells = match &args.cells {
                 Some([u, v]) => [u.eval(ctx.slots), v.eval(ctx.slots)],
                 None => [8.0, 8.0],
             };
@@ -103,44 +104,43 @@ fn tessellate_call(
             };
             Mode::Uniform {
                 cells: [count(cells[0])?, count(cells[1])?],
-                per_patch: call.flag("per_patch") != Some(false),
+                per_patch: args.per_patch,
                 diagonal: Diagonal::Fixed,
             }
         }
-        Some("interpatch") => Mode::InterPatch { tolerance },
-        _ => {
+        TessMode::InterPatch => Mode::InterPatch { tolerance },
+        TessMode::Adaptive => {
             let mut options = AdaptiveOptions::sagitta(tolerance);
-            if let Some(level) = value("max_level") {
-                options.max_level = libm::round(level).clamp(1.0, 64.0) as u32;
-            }
-            let threshold = |default: f64| value("threshold").unwrap_or(default);
-            let extra = match call.choice("test") {
-                Some("one_edge_normal") => Some(EdgeTest::OneEdgeNormal {
+            let level = args.max_level.eval(ctx.slots);
+            options.max_level = libm::round(level).clamp(1.0, 64.0) as u32;
+            let threshold = |default: f64| value(&args.threshold).unwrap_or(default);
+            let extra = match args.test {
+                EdgeTestName::OneEdgeNormal => Some(EdgeTest::OneEdgeNormal {
                     t1: threshold(0.02),
                 }),
-                Some("one_edge_complementary") => Some(EdgeTest::OneEdgeComplementary {
+                EdgeTestName::OneEdgeComplementary => Some(EdgeTest::OneEdgeComplementary {
                     t1: threshold(0.02),
                     t2: 2.0 * threshold(0.02),
                 }),
-                Some("two_triangle") => Some(EdgeTest::TwoTriangle {
+                EdgeTestName::TwoTriangle => Some(EdgeTest::TwoTriangle {
                     t3: threshold(0.02),
                 }),
-                Some("first_order_neighbour") => Some(EdgeTest::FirstOrderNeighbour {
+                EdgeTestName::FirstOrderNeighbour => Some(EdgeTest::FirstOrderNeighbour {
                     t3: threshold(0.02),
                 }),
-                Some("vector_deviation") => Some(EdgeTest::VectorDeviation {
+                EdgeTestName::VectorDeviation => Some(EdgeTest::VectorDeviation {
                     cos_max: threshold(libm::cos(2f64.to_radians())),
                 }),
-                Some("local_flat") => Some(EdgeTest::LocalFlat { t: threshold(0.05) }),
-                Some("umbrella_flat") => Some(EdgeTest::UmbrellaFlat { t: threshold(0.05) }),
-                _ => None,
+                EdgeTestName::LocalFlat => Some(EdgeTest::LocalFlat { t: threshold(0.05) }),
+                EdgeTestName::UmbrellaFlat => Some(EdgeTest::UmbrellaFlat { t: threshold(0.05) }),
+                EdgeTestName::Sagitta => None,
             };
             if let Some(test) = extra {
                 options.tests.push(test);
                 // The flip rule is for the chordal test alone.
                 options.flips = false;
             }
-            if call.choice("combine") == Some("all") {
+            if args.combine == op_args::Combine::All {
                 options.combine = Combine::All;
             }
             Mode::Adaptive(options)
@@ -184,9 +184,9 @@ fn tessellate_call(
 pub(super) fn create(
     ctx: &SurfaceContext,
     mesh: &mut Mesh,
-    call: &Call,
+    args: &TessellateArgs,
 ) -> Result<(Selection, SurfaceStats), StepError> {
-    let (t, stats) = tessellate_call(ctx, call, 1)?;
+    let (t, stats) = tessellate_call(ctx, args, 1)?;
     let made = append_surface(
         mesh,
         &t.mesh.positions,
@@ -202,11 +202,10 @@ pub(super) fn create(
 pub(super) fn place_parts(
     ctx: &SurfaceContext,
     mesh: &mut Mesh,
-    call: &Call,
+    (args, relative): (&TessellateArgs, bool),
     domain: Domain,
     selected: &[usize],
 ) -> Result<(Selection, SurfaceStats), StepError> {
-    let relative = call.flag("relative") == Some(true);
     let placements: Vec<(DMat3, DVec3, f64)> = selected
         .iter()
         .map(|&i| super::fields::placement(mesh, domain, i, relative))
@@ -214,7 +213,7 @@ pub(super) fn place_parts(
     if placements.is_empty() {
         return Ok((Selection::new(), SurfaceStats::default()));
     }
-    let (t, one) = tessellate_call(ctx, call, placements.len())?;
+    let (t, one) = tessellate_call(ctx, args, placements.len())?;
     let n = placements.len() as u64;
     let stats = SurfaceStats {
         triangles: one.triangles * n,
@@ -245,10 +244,9 @@ pub(super) fn place_parts(
 pub(super) fn pn_smooth(
     ctx: &SurfaceContext,
     mesh: &mut Mesh,
-    call: &Call,
+    (level, pattern, crease): (&Scalar, PnPattern, &Scalar),
 ) -> Result<(Selection, SurfaceStats), StepError> {
-    let value = |key: &str| call.scalar(key).map(|e| e.eval(ctx.slots));
-    let level = value("level").unwrap_or(3.0);
+    let level = level.eval(ctx.slots);
     if !(level.is_finite() && level >= 1.0) {
         return Err(StepError::Option {
             key: "level",
@@ -256,7 +254,7 @@ pub(super) fn pn_smooth(
         });
     }
     let level = libm::round(level).min(f64::from(u32::MAX)) as u32;
-    let crease = value("crease").unwrap_or(30.0);
+    let crease = crease.eval(ctx.slots);
     let current = mesh.to_indexed();
     let triangles = current.triangles();
     if triangles.is_empty() {
@@ -264,9 +262,9 @@ pub(super) fn pn_smooth(
     }
     let normals = corner_normals(&current.positions, &triangles, crease);
     let options = PnOptions {
-        pattern: match call.choice("pattern") {
-            Some("gl") => Pattern::Gl,
-            _ => Pattern::Uniform,
+        pattern: match pattern {
+            PnPattern::Gl => Pattern::Gl,
+            PnPattern::Uniform => Pattern::Uniform,
         },
         // Edges whose corner normals differ stay straight: a crease stays
         // a sharp edge, and the faces beside it stay flat where they were.

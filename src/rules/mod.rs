@@ -12,6 +12,7 @@ pub mod diagnostic;
 pub mod expr;
 pub mod lint;
 pub mod nurbs_def;
+pub mod op_args;
 pub mod operators;
 pub mod program;
 pub mod property;

@@ -9,6 +9,11 @@
 
 use crate::kernel::Domain;
 
+use super::op_args::{
+    Adjacency, Axis, BooleanOp, ChoiceArg, Combine, DeleteKind, EdgeTestName, GridKind, Mesher,
+    PnPattern, SkinMethod, TessMode, UpAxis, VertexPlacement,
+};
+
 /// Every operator, by identity (the engine's dispatch is a `match` on it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum OpId {
@@ -145,8 +150,39 @@ pub struct OperatorDef {
     pub params: &'static [ParamDef],
     /// Parameter pairs that exclude each other.
     pub exclusive: &'static [(&'static str, &'static str)],
+    /// What of the selection its implementation reads (the engine hands
+    /// it nothing else).
+    pub reads: Reads,
+    /// Whether what it returns is geometry a step's `part` and `material`
+    /// tag: false for operators that move, merge or remove (naming a part
+    /// on them is an error, not a silent no-op).
+    pub tags: bool,
+    /// The smallest table the compiler and the JSON Schema both accept
+    /// (on a cube, after a step named `first`, with a `[nurbs.patch]`
+    /// surface and a `mesh.obj` beside the file): what the tests compile
+    /// for every operator.
+    pub example: &'static str,
     /// One line for the schema, `explain` and the documentation.
     pub summary: &'static str,
+}
+
+/// What of the selected elements an operator's implementation reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reads {
+    /// Nothing: it makes geometry from nothing or works on the whole mesh.
+    Nothing,
+    /// The selected elements as selected (faces, or edges, or vertices).
+    Selection,
+    /// The vertices of the selection (of its edges and faces too).
+    Verts,
+    /// The edges of the selection (of its faces too).
+    Edges,
+    /// The selection and everything under it (a face's edges and
+    /// vertices).
+    Everything,
+    /// As [`Reads::Everything`], but selected faces alone (`delete`
+    /// removes what is under them by its mode).
+    EverythingUnlessFaces,
 }
 
 impl OperatorDef {
@@ -299,7 +335,7 @@ const INSET: &[ParamDef] = &[
 
 const REGION: &[ParamDef] = &[param(
     "by",
-    Choice(&["edge", "vert"]),
+    Choice(Adjacency::NAMES),
     Default::Choice(0),
     "adjacency (\"edge\")",
 )];
@@ -370,13 +406,13 @@ const CELL: ParamDef = above(
 );
 const MESHER: ParamDef = param(
     "mesher",
-    Choice(&["marching_cubes", "dual_contouring"]),
+    Choice(Mesher::NAMES),
     Default::Choice(0),
     "\"marching_cubes\" (smooth shapes) or \"dual_contouring\" (sharp edges and corners)",
 );
 const VERTEX: ParamDef = param(
     "vertex",
-    Choice(&["linear", "midpoint", "refine"]),
+    Choice(VertexPlacement::NAMES),
     Default::Choice(0),
     "where a vertex sits on a grid edge: interpolated (\"linear\"), at the midpoint, or refined on the field (\"refine\": 12 regula falsi steps)",
 );
@@ -409,7 +445,7 @@ macro_rules! meshing_params {
             VERTEX,
             param(
                 "grid",
-                Choice(&["lattice_half", "lattice", "linspace"]),
+                Choice(GridKind::NAMES),
                 Default::Choice(0),
                 "sample placement: cell centres of a lattice through the origin offset by half a cell (\"lattice_half\", no sample on a coordinate plane), the lattice k·h, or N evenly spaced samples spanning the domain (\"linspace\", as scikit-image)",
             ),
@@ -439,7 +475,7 @@ const SDF_BOOLEAN: &[ParamDef] = meshing_params!(
     TREE,
     param(
         "operation",
-        Choice(&["difference", "union", "intersection"]),
+        Choice(BooleanOp::NAMES),
         Default::Choice(0),
         "the mesh minus, plus or intersected with the tree (\"difference\")",
     ),
@@ -473,6 +509,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             param("radius", Scalar, Default::None, "node radius"),
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: one vertex (node)",
     },
     OperatorDef {
@@ -491,6 +530,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             ),
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: a circle in the XY plane",
     },
     OperatorDef {
@@ -513,6 +555,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             ),
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: a grid of quads in the XY plane",
     },
     OperatorDef {
@@ -527,6 +572,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             "edge length (2)",
         )],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: a centred cube",
     },
     OperatorDef {
@@ -545,6 +593,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             RADIUS,
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: a UV sphere",
     },
     OperatorDef {
@@ -565,6 +616,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             param("caps", Bool, Default::Bool(true), "close the ends (true)"),
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: a cylinder along z",
     },
     OperatorDef {
@@ -579,6 +633,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             param("caps", Bool, Default::Bool(true), "close the base (true)"),
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{}",
         summary: "create: a cone along z",
     },
     OperatorDef {
@@ -604,12 +661,15 @@ pub static OPERATORS: &[OperatorDef] = &[
             },
             param(
                 "up",
-                Choice(&["z", "y"]),
+                Choice(UpAxis::NAMES),
                 Default::Choice(0),
                 "the file's up axis (OBJ, PLY, STL; \"z\")",
             ),
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{ path = \"mesh.obj\" }",
         summary: "create: a mesh from a file",
     },
     OperatorDef {
@@ -619,6 +679,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: ANY,
         params: &[required("offset", Vector, "displacement")],
         exclusive: &[],
+        reads: Reads::Verts,
+        tags: false,
+        example: "{ offset = 1 }",
         summary: "move the selected elements' vertices",
     },
     OperatorDef {
@@ -637,6 +700,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             CENTER,
         ],
         exclusive: &[],
+        reads: Reads::Verts,
+        tags: false,
+        example: "{ angle = 10 }",
         summary: "rotate the selected elements' vertices",
     },
     OperatorDef {
@@ -646,6 +712,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: ANY,
         params: &[required("factor", Vector, "scale factors"), CENTER],
         exclusive: &[],
+        reads: Reads::Verts,
+        tags: false,
+        example: "{ factor = 2 }",
         summary: "scale the selected elements' vertices",
     },
     OperatorDef {
@@ -655,6 +724,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: ANY,
         params: EXTRUDE,
         exclusive: &[("offset", "distance")],
+        reads: Reads::Verts,
+        tags: true,
+        example: "{ offset = [0, 0, 1] }",
         summary: "extrude vertices into edges",
     },
     OperatorDef {
@@ -664,6 +736,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Edge, Face],
         params: EXTRUDE,
         exclusive: &[("offset", "distance")],
+        reads: Reads::Edges,
+        tags: true,
+        example: "{ offset = [0, 0, 1] }",
         summary: "extrude edges into faces",
     },
     OperatorDef {
@@ -673,6 +748,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: EXTRUDE,
         exclusive: &[("offset", "distance")],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ distance = 1 }",
         summary: "extrude each face separately",
     },
     OperatorDef {
@@ -682,6 +760,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: EXTRUDE,
         exclusive: &[("offset", "distance")],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ distance = 1 }",
         summary: "extrude the faces as one region",
     },
     OperatorDef {
@@ -691,6 +772,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: INSET,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ thickness = 0.1 }",
         summary: "inset each face separately",
     },
     OperatorDef {
@@ -700,6 +784,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: INSET,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ thickness = 0.1 }",
         summary: "inset the faces as one region",
     },
     OperatorDef {
@@ -717,6 +804,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             ),
         ],
         exclusive: &[("cuts", "ratios")],
+        reads: Reads::Edges,
+        tags: true,
+        example: "{ cuts = 2 }",
         summary: "split edges into parts",
     },
     OperatorDef {
@@ -726,6 +816,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: &[],
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "triangulate faces",
     },
     OperatorDef {
@@ -735,6 +828,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES_EDGES,
         params: &[],
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "give the selected faces (or wire edges) the step's `part` and `material`; geometry unchanged",
     },
     OperatorDef {
@@ -744,6 +840,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: &[],
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "reverse face winding",
     },
     OperatorDef {
@@ -758,6 +857,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             "make winding consistent and outward (true)",
         )],
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "make winding consistent",
     },
     OperatorDef {
@@ -767,11 +869,14 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Face, Edge, Vert],
         params: &[param(
             "mode",
-            Choice(&["all", "faces", "faces_and_edges"]),
+            Choice(DeleteKind::NAMES),
             Default::Choice(0),
             "what goes with the elements (\"all\")",
         )],
         exclusive: &[],
+        reads: Reads::EverythingUnlessFaces,
+        tags: false,
+        example: "{}",
         summary: "delete elements",
     },
     OperatorDef {
@@ -781,6 +886,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Face, Edge, Vert],
         params: &[],
         exclusive: &[],
+        reads: Reads::Everything,
+        tags: true,
+        example: "{}",
         summary: "duplicate elements",
     },
     OperatorDef {
@@ -790,6 +898,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Edge, Face],
         params: &[],
         exclusive: &[],
+        reads: Reads::Edges,
+        tags: false,
+        example: "{}",
         summary: "dissolve regions of edges into single faces",
     },
     OperatorDef {
@@ -799,6 +910,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Edge, Face],
         params: &[],
         exclusive: &[],
+        reads: Reads::Edges,
+        tags: true,
+        example: "{}",
         summary: "make a face from a closed ring of edges",
     },
     OperatorDef {
@@ -812,6 +926,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             "merge vertices within this distance",
         )],
         exclusive: &[],
+        reads: Reads::Verts,
+        tags: false,
+        example: "{ distance = 0.1 }",
         summary: "merge vertices by distance",
     },
     OperatorDef {
@@ -822,7 +939,7 @@ pub static OPERATORS: &[OperatorDef] = &[
         params: &[
             param(
                 "axis",
-                Choice(&["x", "y", "z"]),
+                Choice(Axis::NAMES),
                 Default::None,
                 "mirror across the plane perpendicular to this axis",
             ),
@@ -846,6 +963,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             ),
         ],
         exclusive: &[("axis", "normal")],
+        reads: Reads::Everything,
+        tags: true,
+        example: "{ axis = \"x\" }",
         summary: "mirror across a plane, welding the seam",
     },
     OperatorDef {
@@ -855,6 +975,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: REGION,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "grow the face selection",
     },
     OperatorDef {
@@ -864,6 +987,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: REGION,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "shrink the face selection",
     },
     OperatorDef {
@@ -873,6 +999,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Vert],
         params: COMMAND,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ length = 1 }",
         summary: "G³: new node n₁ = n₀ + l·H and edge (n₀, n₁) on every matching node",
     },
     OperatorDef {
@@ -882,6 +1011,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Edge],
         params: COMMAND,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "G³: split every matching edge at n₀ + l·H",
     },
     OperatorDef {
@@ -891,6 +1023,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Edge],
         params: COMMAND,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{}",
         summary: "G³: a triangle on every matching edge",
     },
     OperatorDef {
@@ -900,6 +1035,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: FACES,
         params: SPLIT_FACE,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ length = 0.5 }",
         summary: "G³: a fan from a new node at the barycentre (+ l·H) of every matching face",
     },
     OperatorDef {
@@ -909,6 +1047,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Vert],
         params: COMMAND,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: false,
+        example: "{ length = 0.1 }",
         summary: "G³: move every matching node by l·H, set its radius",
     },
     OperatorDef {
@@ -943,7 +1084,7 @@ pub static OPERATORS: &[OperatorDef] = &[
             ),
             param(
                 "method",
-                Choice(&["tubes", "field"]),
+                Choice(SkinMethod::NAMES),
                 Default::Choice(0),
                 "\"tubes\": a polygonal tube per wire edge (fast; tubes overlap at branches); \"field\": one watertight solid per connected skeleton, meshed from a smooth union of round cones",
             ),
@@ -967,6 +1108,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             DOMAIN,
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{ sides = 6 }",
         summary: "turn every wire edge into a tapered tube, or the skeleton into one smooth solid",
     },
     OperatorDef {
@@ -976,6 +1120,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[],
         params: SDF,
         exclusive: &[("cell", "cells")],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{ tree = { kind = \"sphere\", radius = 1 }, cells = 8 }",
         summary: "create: a signed distance tree, meshed (closed, manifold, outward)",
     },
     OperatorDef {
@@ -985,6 +1132,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Face, Vert, Edge],
         params: SDF_PART,
         exclusive: &[("cell", "cells")],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ tree = { kind = \"sphere\", radius = 0.2 }, cells = 8 }",
         summary: "a meshed signed distance tree placed in the frame of every selected primitive (a face's centre and normal, a node's frame, an edge's midpoint and direction), appended",
     },
     OperatorDef {
@@ -994,6 +1144,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Face],
         params: SDF_BOOLEAN,
         exclusive: &[("cell", "cells")],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{ tree = { kind = \"sphere\", radius = 0.5 }, cells = 8 }",
         summary: "combine the mesh with a signed distance tree through the mesh's distance field, and re-mesh the result",
     },
     OperatorDef {
@@ -1003,6 +1156,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[],
         params: NURBS,
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{ surface = \"patch\" }",
         summary: "create: a NURBS surface, tessellated into a conforming triangle mesh",
     },
     OperatorDef {
@@ -1012,6 +1168,9 @@ pub static OPERATORS: &[OperatorDef] = &[
         domains: &[Face, Vert, Edge],
         params: NURBS_PART,
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ surface = \"patch\", mode = \"uniform\", cells = [2, 2] }",
         summary: "a tessellated NURBS surface placed in the frame of every selected primitive (as sdf_part), appended",
     },
     OperatorDef {
@@ -1038,6 +1197,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             },
         ],
         exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ cells = 2 }",
         summary: "replace every selected quad by a bicubic Bézier patch on its corners (inner control points lifted along the normal), as an n × n grid; edges shared with other faces are split alike, so the mesh stays conforming",
     },
     OperatorDef {
@@ -1058,7 +1220,7 @@ pub static OPERATORS: &[OperatorDef] = &[
             },
             param(
                 "pattern",
-                Choice(&["uniform", "gl"]),
+                Choice(PnPattern::NAMES),
                 Default::Choice(0),
                 "\"uniform\" (a regular barycentric grid) or \"gl\" (OpenGL's ring pattern: a 12-triangle cube at level 5 gives 444 triangles)",
             ),
@@ -1074,6 +1236,9 @@ pub static OPERATORS: &[OperatorDef] = &[
             },
         ],
         exclusive: &[],
+        reads: Reads::Nothing,
+        tags: true,
+        example: "{ level = 2 }",
         summary: "replace the mesh by PN (curved) triangles: cubic geometry from its vertex normals, closed input stays closed",
     },
 ];
@@ -1086,7 +1251,7 @@ macro_rules! tessellation_params {
             required("surface", Surface, "the name of a [nurbs.NAME] surface"),
             param(
                 "mode",
-                Choice(&["adaptive", "interpatch", "uniform"]),
+                Choice(TessMode::NAMES),
                 Default::Choice(0),
                 "tessellation: refined in rounds until every edge meets `tolerance` (\"adaptive\"), levels per Bézier patch and border (\"interpatch\"), or a regular grid (\"uniform\")",
             ),
@@ -1108,16 +1273,7 @@ macro_rules! tessellation_params {
             },
             param(
                 "test",
-                Choice(&[
-                    "sagitta",
-                    "one_edge_normal",
-                    "one_edge_complementary",
-                    "two_triangle",
-                    "first_order_neighbour",
-                    "vector_deviation",
-                    "local_flat",
-                    "umbrella_flat",
-                ]),
+                Choice(EdgeTestName::NAMES),
                 Default::Choice(0),
                 "adaptive: a thesis edge test (§2.2) applied besides the chordal `tolerance` (\"sagitta\": that alone)",
             ),
@@ -1129,7 +1285,7 @@ macro_rules! tessellation_params {
             ),
             param(
                 "combine",
-                Choice(&["any", "all"]),
+                Choice(Combine::NAMES),
                 Default::Choice(0),
                 "adaptive: split an edge when either test says so (\"any\") or only when both do (\"all\")",
             ),

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use crate::kernel::Domain;
 
 use super::expr::Expr;
-use super::operators::{ArgKind, OperatorDef};
+use super::operators::OperatorDef;
 use super::sdf_tree::SdfForest;
 
 /// A compiled rule file.
@@ -386,7 +386,7 @@ pub enum Op {
     /// A create, kernel or whole-mesh operator ([`Family::Create`],
     /// [`Family::Kernel`], [`Family::WholeMesh`]): its definition and its
     /// compiled arguments.
-    Call(Call),
+    Call(Box<Call>),
     /// A G³ command.
     Command(Box<Command>),
     /// A compound command call.
@@ -418,13 +418,12 @@ impl Op {
     }
 }
 
-/// A create, kernel or whole-mesh operator with its arguments, compiled
-/// against its definition: one [`Arg`] per parameter, in the definition's
-/// order, defaults filled in.
+/// A create, kernel or whole-mesh operator with its typed arguments
+/// (compiled against its registry row, defaults filled in).
 #[derive(Debug, Clone)]
 pub struct Call {
     pub def: &'static OperatorDef,
-    pub args: Vec<Arg>,
+    pub args: super::op_args::OpArgs,
 }
 
 /// A compiled argument.
@@ -447,105 +446,4 @@ pub enum Arg {
     Bounds(Box<[Vector; 2]>),
     /// The index of a surface in [`Program::nurbs`].
     Surface(usize),
-}
-
-impl Call {
-    fn arg(&self, key: &str) -> &Arg {
-        let i = self
-            .def
-            .params
-            .iter()
-            .position(|p| p.key == key)
-            .unwrap_or_else(|| panic!("`{}` has no parameter `{key}`", self.def.name));
-        &self.args[i]
-    }
-
-    /// A scalar parameter (`None` when absent without a default).
-    pub fn scalar(&self, key: &str) -> Option<&Scalar> {
-        match self.arg(key) {
-            Arg::Scalar(e) => Some(e),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a scalar", self.def.name),
-        }
-    }
-
-    pub fn vector(&self, key: &str) -> Option<&Vector> {
-        match self.arg(key) {
-            Arg::Vector(v) => Some(v),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a vector", self.def.name),
-        }
-    }
-
-    pub fn pair(&self, key: &str) -> Option<&[Scalar; 2]> {
-        match self.arg(key) {
-            Arg::Pair(p) => Some(p),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a pair", self.def.name),
-        }
-    }
-
-    pub fn list(&self, key: &str) -> Option<&[Scalar]> {
-        match self.arg(key) {
-            Arg::List(l) => Some(l),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a list", self.def.name),
-        }
-    }
-
-    /// A boolean parameter (`None` when absent without a default).
-    pub fn flag(&self, key: &str) -> Option<bool> {
-        match self.arg(key) {
-            Arg::Bool(b) => Some(*b),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a boolean", self.def.name),
-        }
-    }
-
-    /// The chosen name of a choice parameter.
-    pub fn choice(&self, key: &str) -> Option<&'static str> {
-        let names = match self.def.param(key).map(|p| p.kind) {
-            Some(ArgKind::Choice(names)) => names,
-            _ => panic!("`{}.{key}` is not a choice", self.def.name),
-        };
-        match self.arg(key) {
-            Arg::Choice(i) => Some(names[*i]),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a choice", self.def.name),
-        }
-    }
-
-    /// The root node (in [`Program::sdf`]) of a tree parameter.
-    pub fn tree(&self, key: &str) -> Option<usize> {
-        match self.arg(key) {
-            Arg::Tree(i) => Some(*i),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a tree", self.def.name),
-        }
-    }
-
-    pub fn surface(&self, key: &str) -> Option<usize> {
-        match self.arg(key) {
-            Arg::Surface(i) => Some(*i),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a surface", self.def.name),
-        }
-    }
-
-    pub fn bounds(&self, key: &str) -> Option<&[Vector; 2]> {
-        match self.arg(key) {
-            Arg::Bounds(b) => Some(b),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a box", self.def.name),
-        }
-    }
-
-    /// The resource index of a path parameter.
-    pub fn resource(&self, key: &str) -> Option<usize> {
-        match self.arg(key) {
-            Arg::Resource(i) => Some(*i),
-            Arg::Absent => None,
-            other => panic!("`{}.{key}` is {other:?}, not a path", self.def.name),
-        }
-    }
 }

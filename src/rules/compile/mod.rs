@@ -21,6 +21,7 @@ use super::program::{
 use super::property;
 use super::random::stream_key;
 
+mod args;
 mod look;
 mod nurbs;
 mod sdf;
@@ -1431,13 +1432,7 @@ impl Expander<'_, '_> {
         };
         // Steps that create no faces or edges (they move, merge or delete)
         // would tag nothing: say so rather than do nothing.
-        let tags_nothing = def.is_some_and(|d| {
-            use operators::OpId::*;
-            matches!(
-                d.id,
-                Translate | Rotate | Scale | Merge | Delete | DissolveEdges
-            )
-        });
+        let tags_nothing = def.is_some_and(|d| !d.tags);
         if tags_nothing && (part.is_some() || material.is_some()) {
             let key = step
                 .part
@@ -1959,7 +1954,10 @@ fn compile_op(
     }
     check_method_params(c, &checked)?;
     let args = compile_params(c, def.name, def.params, &checked.values, base_dir)?;
-    Ok(Op::Call(Call { def, args }))
+    Ok(Op::Call(Box::new(Call {
+        def,
+        args: args::typed(def, args),
+    })))
 }
 
 /// Parameters that belong to one `method` of an operator: written with
