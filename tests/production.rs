@@ -63,11 +63,13 @@ fn outputs(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
             let name = path.file_name().unwrap().to_string_lossy().into_owned();
             if path.is_dir() {
                 stack.push(path);
-            } else if !name.starts_with("manifest")
-                && !name.ends_with(".journal")
-                // What a killed writer leaves: checked on its own.
-                && !(name.contains(".graftal-") && name.ends_with(".tmp"))
-            {
+            } else {
+                // Manifests, journals and what a killed writer leaves
+                // (checked on their own) are not outputs.
+                let temp = name.contains(".graftal-") && name.ends_with(".tmp");
+                if name.starts_with("manifest") || name.ends_with(".journal") || temp {
+                    continue;
+                }
                 let bytes = std::fs::read(&path).unwrap();
                 out.push((path.strip_prefix(dir).unwrap().to_path_buf(), bytes));
             }

@@ -481,7 +481,7 @@ fn closed_and_oriented<'a>(
 /// over each set agrees. A border (every open sheet) almost surely breaks
 /// the balance; only a balanced set goes on to the exact test.
 fn reversal_balanced<'a>(polygons: impl Iterator<Item = &'a [u32]>) -> bool {
-    let hash = |a: u32, b: u32| splitmix64((u64::from(a) << 32) | u64::from(b));
+    let hash = |a: u32, b: u32| splitmix64(super::edge_key::directed(a, b));
     let (mut forward, mut backward) = (0u64, 0u64);
     for poly in polygons {
         let mut a = *poly.last().unwrap_or(&0);

@@ -20,10 +20,12 @@
 //!   closed prisms a viewer draws.
 //! - [`cells`]: hash-grid cells for fixed-distance searches (8 cells, not
 //!   27).
-//! - [`union_find`] and [`names`] (the "did you mean" of every message).
+//! - [`union_find`], [`names`] (the "did you mean" of every message) and
+//!   [`edge_key`] (one `u64` key for an edge between two vertex ids).
 
 pub mod boxes;
 pub mod cells;
+pub mod edge_key;
 pub mod frame;
 pub mod indexed;
 pub mod interval;

@@ -4,13 +4,20 @@
 //! writers' [`IndexedMesh`] with named parts, materials, shading normals
 //! and texture coordinates.
 
+use crate::geom::material::srgb_to_linear;
 use crate::geom::material::Material;
 use crate::geom::uv::UvMapping;
 use crate::geom::{normals, uv, IndexedMesh};
 use crate::kernel::attrs::AttrValue;
 use crate::kernel::ops::Selection;
+use crate::kernel::FaceId;
 use crate::kernel::{Domain, LayerKind, Mesh};
 use crate::rules::program::{Program, COLOR_LAYER, MATERIAL_LAYER, NO_MATERIAL, PART_LAYER};
+use crate::rules::{property, random};
+use glam::DVec3;
+
+use super::properties::Context;
+use super::run::{LazyProperties, Runner};
 
 /// Adds the part and material layers (part 0, no material).
 pub(super) fn ensure_layers(mesh: &mut Mesh) {
@@ -260,4 +267,112 @@ fn renumber(used: &[bool]) -> (Vec<usize>, Vec<u32>) {
         kept.push(i);
     }
     (kept, index)
+}
+
+/// The colour pass, run once the steps end.
+impl Runner<'_> {
+    /// Evaluates each face's part's colour expression on the finished
+    /// model into the colour layer (issue 16; nothing when no part has
+    /// one). Channels are clamped into [0, 1] (hue wraps) and read as
+    /// sRGB; the layer holds linear RGB, as glTF's COLOR_0 does.
+    pub(super) fn paint(&mut self, mesh: &mut Mesh) {
+        let look = &self.program.look;
+        if look.colors.is_empty() {
+            return;
+        }
+        let stream = random::stream_key("color");
+        let generation = self.program.step_count as u32 + 1;
+        let base = self.program.param_names.len();
+        let faces: Vec<FaceId> = mesh.face_ids().collect();
+        let mut painted = Vec::with_capacity(faces.len());
+        let part_of = super::asset::int_layer(mesh, PART_LAYER, Domain::Face, 0);
+        for &f in &faces {
+            let part = usize::try_from(part_of(f.index())).unwrap_or(0);
+            let Some(spec) = look
+                .parts
+                .get(part)
+                .and_then(|p| p.color)
+                .map(|c| &look.colors[c as usize])
+            else {
+                painted.push(None);
+                continue;
+            };
+            let ctx = Context {
+                mesh,
+                scope: None,
+                seed: self.seed,
+                stream,
+                generation,
+            };
+            let mut source = LazyProperties {
+                params: &self.slots[..base],
+                ctx: &ctx,
+                domain: Domain::Face,
+                index: f.index(),
+                values: [0.0; property::SLOT_COUNT],
+                known: 0,
+            };
+            let [a, b, c] = [0, 1, 2].map(|k| spec.channels[k].expr.eval_with(&mut source));
+            self.evaluations += 3;
+            let srgb = if spec.hsv {
+                hsv_to_rgb(a, b, c)
+            } else {
+                [a, b, c].map(unit)
+            };
+            painted.push(Some(DVec3::from_array(srgb.map(srgb_to_linear))));
+        }
+        drop(part_of);
+        let _ = mesh.add_layer(COLOR_LAYER, Domain::Face, AttrValue::Vector(DVec3::ONE));
+        for (f, color) in faces.into_iter().zip(painted) {
+            if let Some(color) = color {
+                let _ = mesh.set_attr(
+                    COLOR_LAYER,
+                    Domain::Face,
+                    f.index(),
+                    AttrValue::Vector(color),
+                );
+            }
+        }
+    }
+}
+
+/// `x` clamped into [0, 1]; NaN → 0.
+fn unit(x: f64) -> f64 {
+    if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(0.0, 1.0)
+    }
+}
+
+/// HSV (hue in turns, wrapping; saturation and value clamped) to RGB.
+fn hsv_to_rgb(h: f64, s: f64, v: f64) -> [f64; 3] {
+    let h = if h.is_finite() { h - h.floor() } else { 0.0 };
+    let (s, v) = (unit(s), unit(v));
+    let sector = h * 6.0;
+    let i = (sector.floor() as usize).min(5);
+    let f = sector - i as f64;
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    match i {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    }
+}
+
+#[cfg(test)]
+mod color_tests {
+    use super::hsv_to_rgb;
+
+    #[test]
+    fn hsv_primaries_and_wrap() {
+        assert_eq!(hsv_to_rgb(0.0, 1.0, 1.0), [1.0, 0.0, 0.0]);
+        assert_eq!(hsv_to_rgb(1.0 / 3.0, 1.0, 1.0)[1], 1.0);
+        assert_eq!(hsv_to_rgb(2.0 / 3.0, 1.0, 1.0)[2], 1.0);
+        assert_eq!(hsv_to_rgb(1.25, 0.0, 0.5), [0.5; 3]);
+        assert_eq!(hsv_to_rgb(f64::NAN, 2.0, -1.0), [0.0; 3]);
+    }
 }

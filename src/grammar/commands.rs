@@ -13,8 +13,13 @@ use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::program::{Command, CommandKind, Condition};
 
+use super::error::StepError;
 use super::graph::{self, Frame};
+use super::lineage;
+use super::run::{step_error, CancelLevel, Runner, Stop, Tally};
 use super::scope::Reference;
+use crate::rules::program::{OnIntersection, Policy, Step};
+use crate::rules::random;
 
 /// What one command will do to one primitive.
 ///
@@ -445,6 +450,213 @@ fn refresh_around(mesh: &mut Mesh, v: VertId) {
     let faces: Vec<FaceId> = mesh.vert_faces(v).collect();
     for f in faces {
         mesh.refresh_normal(f);
+    }
+}
+
+/// Running a G³ command step: plan on Gₙ, apply in canonical order (or
+/// the testing hook's shuffle), key the products' lineage, then merge or
+/// record what the policy says.
+impl Runner<'_> {
+    /// Plans a G³ command on every matched primitive of generation Gₙ, then
+    /// applies the plans.
+    pub(super) fn run_command(
+        &mut self,
+        mesh: &mut Mesh,
+        step: &Step,
+        command: &Command,
+        matched: &[usize],
+        tally: &mut Tally,
+    ) -> Result<Selection, Stop> {
+        let generation = step.uid + 1;
+        let fail = |index: usize, error: CommandError| {
+            step_error(
+                step,
+                StepError::Command {
+                    domain: step.domain,
+                    index,
+                    error,
+                },
+            )
+        };
+        let call = self.calls.last().copied();
+        let reference = self.reference();
+        let mut made = Selection::new();
+        let mut plans: Vec<Plan> = Vec::with_capacity(matched.len());
+        // `split_face` only: each plan's fan, parallel to `plans`.
+        let mut fans: Vec<Fan> = Vec::new();
+        for &i in matched {
+            if let Some(call) = call {
+                if let Some(products) = self.applied.get(&(call, step.uid, i as u32)) {
+                    made.append(products);
+                    tally.shared += 1;
+                    continue;
+                }
+            }
+            if let Some(p) = &command.probability {
+                let p = self.eval(mesh, step, generation, i, step.domain, p);
+                if !(0.0..=1.0).contains(&p) {
+                    return Err(Stop::Fail(step_error(
+                        step,
+                        StepError::Probability {
+                            domain: step.domain,
+                            index: i,
+                            value: p,
+                        },
+                    )));
+                }
+                if random::unit(self.seed, step.key, lineage::key(mesh, step.domain, i), 0) >= p {
+                    tally.skipped += 1;
+                    continue;
+                }
+            }
+            let (seed, key) = (self.seed, step.key);
+            let id = lineage::key(mesh, step.domain, i);
+            let spread = |draw: u64| 2.0 * random::unit(seed, key, id, draw) - 1.0;
+            let (plan, up) = {
+                let mut eval = |c: &Condition| self.eval(mesh, step, generation, i, step.domain, c);
+                plan(mesh, command, i, &reference, &mut eval, &spread)
+            }
+            .map_err(|e| fail(i, e))?;
+            if command.kind == CommandKind::SplitFace {
+                let ring: Vec<VertId> = mesh.face_verts(FaceId::from_index(i)).collect();
+                let nodes = match &command.nodes {
+                    None => ring,
+                    Some(c) => ring
+                        .into_iter()
+                        .filter(|v| {
+                            self.eval(mesh, step, generation, v.index(), Domain::Vert, c) != 0.0
+                        })
+                        .collect(),
+                };
+                fans.push(Fan { up, nodes });
+            }
+            plans.push(plan);
+        }
+        tally.applied = plans.len();
+        // Each plan adds at most a node, a few edges and faces per side.
+        let coming: usize = 4 * plans.len() + fans.iter().map(|f| 2 * f.nodes.len()).sum::<usize>();
+        self.check_size(mesh, step, coming)?;
+        let policy = step.policy.unwrap_or(self.policy());
+        let testing = policy == Policy::Intersect;
+        // Plans apply in plan order (ascending target). Under `intersect` an
+        // application is tested against what the ones before it made, so
+        // the order stays canonical; otherwise the testing hook may shuffle
+        // it (a seeded Fisher–Yates), and only then is an order list kept.
+        let shuffle = self.shuffle.filter(|_| !testing);
+        let order: Option<Vec<usize>> = shuffle.map(|shuffle| {
+            let mut order: Vec<usize> = (0..plans.len()).collect();
+            for k in (1..order.len()).rev() {
+                let j = random::int_in(shuffle, 0, k as u64, 0, 0, k as i64) as usize;
+                order.swap(k, j);
+            }
+            order
+        });
+        // The nodes the plans make, for the merge below in plan order: one
+        // flat list (not a vector and a heap block per plan: 6 MB of the
+        // peak at 216k plans), tagged with the plan only when shuffled.
+        let mut new_nodes: Vec<VertId> = Vec::new();
+        let mut new_node_plans: Vec<u32> = Vec::new();
+        let count = plans.len();
+        for nth in 0..count {
+            let k = order.as_ref().map_or(nth, |order| order[nth]);
+            let plan = &plans[k];
+            let fan = fans.get(k);
+            if testing && self.guard.would_intersect(mesh, command.kind, plan, fan) {
+                tally.rejected += 1;
+                tally.applied -= 1;
+                let reaction = step.on_intersection.unwrap_or(self.reaction());
+                let error = || {
+                    step_error(
+                        step,
+                        StepError::Intersects {
+                            domain: step.domain,
+                            index: plan.target(),
+                            op: step.op.name(),
+                            uncaught: "",
+                        },
+                    )
+                };
+                match reaction {
+                    OnIntersection::Skip => continue,
+                    OnIntersection::Error => return Err(Stop::Fail(error())),
+                    OnIntersection::CancelCompound => {
+                        tally.cancelled += 1;
+                        tally.cancelled_compounds += 1;
+                        return Err(Stop::Cancel(CancelLevel::Compound, error()));
+                    }
+                    OnIntersection::CancelRule => {
+                        tally.cancelled += 1;
+                        return Err(Stop::Cancel(CancelLevel::Rule, error()));
+                    }
+                }
+            }
+            let parent = lineage::key(mesh, step.domain, plan.target());
+            let products = apply(mesh, command.kind, plan, fan, generation)
+                .map_err(|e| fail(plan.target(), e))?;
+            if self.program.draws_per_primitive {
+                lineage::assign_children(mesh, step.key, parent, &products);
+            }
+            if testing {
+                self.guard.accept(mesh, &products);
+            }
+            if let Some(call) = call {
+                self.applied
+                    .insert((call, step.uid, plan.target() as u32), products.clone());
+            }
+            new_nodes.extend_from_slice(&products.verts);
+            if order.is_some() {
+                new_node_plans.extend(std::iter::repeat_n(k as u32, products.verts.len()));
+            }
+            made.append(&products);
+        }
+        // Thesis §3.1.2.1: after the command, the nodes it made (or, for
+        // edit_node, moved) are merged with those they coincide with. They
+        // are listed in plan order (ascending target), not id order: ids
+        // follow the order plans were applied in, and the first listed of
+        // several new nodes survives.
+        let touched: Vec<VertId> = if command.kind == CommandKind::EditNode {
+            plans
+                .iter()
+                .map(|p| VertId::from_index(p.target()))
+                .collect()
+        } else if order.is_some() {
+            // Stable: a plan's nodes keep their order.
+            let mut tagged: Vec<(u32, VertId)> =
+                new_node_plans.into_iter().zip(new_nodes).collect();
+            tagged.sort_by_key(|&(k, _)| k);
+            tagged.into_iter().map(|(_, v)| v).collect()
+        } else {
+            new_nodes
+        };
+        // The merge and the bookkeeping below do not read the plans.
+        drop((plans, fans, order));
+        let reshapes = matches!(
+            command.kind,
+            CommandKind::SplitEdge | CommandKind::SplitFace | CommandKind::EditNode
+        );
+        match policy {
+            Policy::Merge { tolerance } => {
+                tally.merged += self
+                    .merger
+                    .merge(mesh, &touched, tolerance, &mut made)
+                    .map_err(|e| step_error(step, StepError::Merging(e)))?;
+                self.guard.invalidate();
+            }
+            Policy::None => {
+                self.merger.record(mesh, &touched);
+                self.guard.record(mesh, &made, reshapes);
+            }
+            Policy::Intersect => {
+                self.merger.record(mesh, &touched);
+                self.guard.finish_command(reshapes);
+            }
+        }
+        // Products shared from another scope may since have been merged away.
+        made.verts.retain(|&v| mesh.contains_vert(v));
+        made.edges.retain(|&e| mesh.contains_edge(e));
+        made.faces.retain(|&f| mesh.contains_face(f));
+        made.normalize();
+        Ok(made)
     }
 }
 

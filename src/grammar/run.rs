@@ -16,20 +16,15 @@ use super::intersect::Guard;
 use super::merge::Merger;
 use super::operators;
 use super::surfaces::SurfaceStats;
-use crate::geom::material::srgb_to_linear;
-use crate::kernel::attrs::AttrValue;
 use crate::kernel::ops::Selection;
 use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::expr::SlotSource;
 use crate::rules::program::{
-    Call, Command, CommandKind, Compound, Condition, FrameParams, OnIntersection, Op, ParamKind,
-    Policy, Program, Step,
+    Call, Compound, Condition, FrameParams, OnIntersection, Op, ParamKind, Policy, Program, Step,
 };
-use crate::rules::program::{COLOR_LAYER, PART_LAYER};
 use crate::rules::property;
 use crate::rules::random;
 
-use super::commands::{self, CommandError, Fan, Plan};
 use super::graph::{self, Frame};
 use super::lineage;
 use super::properties::{self, Context};
@@ -155,46 +150,46 @@ pub struct RunOutput {
 /// `Runner::product_slot` of a step whose products no step reads.
 const NO_SLOT: u32 = u32::MAX;
 
-struct Runner<'p> {
-    program: &'p Program,
+pub(super) struct Runner<'p> {
+    pub(super) program: &'p Program,
     /// Part and material of the enclosing compound calls' products.
-    looks: (Option<u32>, Option<u32>),
-    inputs: Arc<[Input]>,
-    max_cells: u64,
-    mesh_progress: crate::sdf::Progress,
-    warnings: Vec<String>,
-    seed: u64,
-    max_elements: usize,
-    deadline: Option<Instant>,
-    max_evaluations: u64,
+    pub(super) looks: (Option<u32>, Option<u32>),
+    pub(super) inputs: Arc<[Input]>,
+    pub(super) max_cells: u64,
+    pub(super) mesh_progress: crate::sdf::Progress,
+    pub(super) warnings: Vec<String>,
+    pub(super) seed: u64,
+    pub(super) max_elements: usize,
+    pub(super) deadline: Option<Instant>,
+    pub(super) max_evaluations: u64,
     /// Condition and parameter evaluations so far.
-    evaluations: u64,
-    shuffle: Option<u64>,
-    validate_each_step: bool,
+    pub(super) evaluations: u64,
+    pub(super) shuffle: Option<u64>,
+    pub(super) validate_each_step: bool,
     /// Parameter values, then property values of the current element.
-    slots: Vec<f64>,
+    pub(super) slots: Vec<f64>,
     /// Products of the latest run of each step some `from` reads, by the
     /// step's slot in `product_slot`.
-    created: Vec<Selection>,
+    pub(super) created: Vec<Selection>,
     /// By uid: the step's slot in `created`, or `NO_SLOT` when no step reads
     /// its products (most steps: the others cost nothing to remember).
-    product_slot: Vec<u32>,
+    pub(super) product_slot: Vec<u32>,
     /// By uid; boxed, since most of a large program's steps may never run.
-    stats: Vec<Option<Box<StepStats>>>,
+    pub(super) stats: Vec<Option<Box<StepStats>>>,
     /// Innermost scope last.
-    scopes: Vec<Scope>,
+    pub(super) scopes: Vec<Scope>,
     /// Uids of the compound steps being run, innermost last.
-    calls: Vec<u32>,
+    pub(super) calls: Vec<u32>,
     /// (compound step, command step, primitive) → products, for the
     /// shared-primitive rule. Looked up only, never iterated.
-    applied: FxHashMap<(u32, u32, u32), Selection>,
+    pub(super) applied: FxHashMap<(u32, u32, u32), Selection>,
     /// Policies of the compound calls being run, innermost last, above the
     /// file's default.
-    policies: Vec<Policy>,
+    pub(super) policies: Vec<Policy>,
     /// Reactions to intersections of the compound calls being run.
-    reactions: Vec<OnIntersection>,
-    merger: Merger,
-    guard: Guard,
+    pub(super) reactions: Vec<OnIntersection>,
+    pub(super) merger: Merger,
+    pub(super) guard: Guard,
 }
 
 /// Runs the program and returns the mesh with per-step statistics.
@@ -285,7 +280,7 @@ impl<'p> Runner<'p> {
     }
 
     /// Remembers what step `uid` made, if a later step reads it.
-    fn remember(&mut self, uid: u32, made: Selection) {
+    pub(super) fn remember(&mut self, uid: u32, made: Selection) {
         let slot = self.product_slot[uid as usize];
         if slot != NO_SLOT {
             self.created[slot as usize] = made;
@@ -305,13 +300,13 @@ impl<'p> Runner<'p> {
 /// Why running stopped early: a failure, or an intersection that cancels
 /// the innermost compound or rule application (caught by the one that
 /// rolls back; a cancel nobody catches becomes a failure).
-enum Stop {
+pub(super) enum Stop {
     Fail(RunError),
     Cancel(CancelLevel, RunError),
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum CancelLevel {
+pub(super) enum CancelLevel {
     Compound,
     Rule,
 }
@@ -347,7 +342,7 @@ struct Snapshot {
     applied: FxHashMap<(u32, u32, u32), Selection>,
 }
 
-fn step_error(step: &Step, error: StepError) -> RunError {
+pub(super) fn step_error(step: &Step, error: StepError) -> RunError {
     RunError {
         kind: error.kind(),
         step: step.name.to_string(),
@@ -367,18 +362,18 @@ fn counts(s: &Selection) -> CreatedCounts {
 
 /// What a step did in one run, before it is summed into [`StepStats`].
 #[derive(Default)]
-struct Tally {
-    candidates: usize,
-    matched: usize,
-    applied: usize,
-    skipped: usize,
-    shared: usize,
-    merged: usize,
-    rejected: usize,
-    cancelled: usize,
-    cancelled_compounds: usize,
-    field: Option<FieldStats>,
-    surface: Option<SurfaceStats>,
+pub(super) struct Tally {
+    pub(super) candidates: usize,
+    pub(super) matched: usize,
+    pub(super) applied: usize,
+    pub(super) skipped: usize,
+    pub(super) shared: usize,
+    pub(super) merged: usize,
+    pub(super) rejected: usize,
+    pub(super) cancelled: usize,
+    pub(super) cancelled_compounds: usize,
+    pub(super) field: Option<FieldStats>,
+    pub(super) surface: Option<SurfaceStats>,
 }
 
 impl Runner<'_> {
@@ -701,7 +696,12 @@ impl Runner<'_> {
 
     /// The run's bounds: the primitive count (with `coming` more on the
     /// way), the evaluation budget and the deadline.
-    fn check_size(&self, mesh: &Mesh, step: &Step, coming: usize) -> Result<(), RunError> {
+    pub(super) fn check_size(
+        &self,
+        mesh: &Mesh,
+        step: &Step,
+        coming: usize,
+    ) -> Result<(), RunError> {
         if self.evaluations > self.max_evaluations {
             return Err(step_error(
                 step,
@@ -736,7 +736,7 @@ impl Runner<'_> {
     /// Value of condition `c` for primitive `index` of `domain`. Element
     /// properties are computed when the condition reads them, so the right
     /// side of a failed `&&` costs nothing.
-    fn eval(
+    pub(super) fn eval(
         &mut self,
         mesh: &Mesh,
         step: &Step,
@@ -765,72 +765,8 @@ impl Runner<'_> {
         c.expr.eval_with(&mut source)
     }
 
-    /// Evaluates each face's part's colour expression on the finished
-    /// model into the colour layer (issue 16; nothing when no part has
-    /// one). Channels are clamped into [0, 1] (hue wraps) and read as
-    /// sRGB; the layer holds linear RGB, as glTF's COLOR_0 does.
-    fn paint(&mut self, mesh: &mut Mesh) {
-        let look = &self.program.look;
-        if look.colors.is_empty() {
-            return;
-        }
-        let stream = random::stream_key("color");
-        let generation = self.program.step_count as u32 + 1;
-        let base = self.program.param_names.len();
-        let faces: Vec<FaceId> = mesh.face_ids().collect();
-        let mut painted = Vec::with_capacity(faces.len());
-        let part_of = super::asset::int_layer(mesh, PART_LAYER, Domain::Face, 0);
-        for &f in &faces {
-            let part = usize::try_from(part_of(f.index())).unwrap_or(0);
-            let Some(spec) = look
-                .parts
-                .get(part)
-                .and_then(|p| p.color)
-                .map(|c| &look.colors[c as usize])
-            else {
-                painted.push(None);
-                continue;
-            };
-            let ctx = Context {
-                mesh,
-                scope: None,
-                seed: self.seed,
-                stream,
-                generation,
-            };
-            let mut source = LazyProperties {
-                params: &self.slots[..base],
-                ctx: &ctx,
-                domain: Domain::Face,
-                index: f.index(),
-                values: [0.0; property::SLOT_COUNT],
-                known: 0,
-            };
-            let [a, b, c] = [0, 1, 2].map(|k| spec.channels[k].expr.eval_with(&mut source));
-            self.evaluations += 3;
-            let srgb = if spec.hsv {
-                hsv_to_rgb(a, b, c)
-            } else {
-                [a, b, c].map(unit)
-            };
-            painted.push(Some(DVec3::from_array(srgb.map(srgb_to_linear))));
-        }
-        drop(part_of);
-        let _ = mesh.add_layer(COLOR_LAYER, Domain::Face, AttrValue::Vector(DVec3::ONE));
-        for (f, color) in faces.into_iter().zip(painted) {
-            if let Some(color) = color {
-                let _ = mesh.set_attr(
-                    COLOR_LAYER,
-                    Domain::Face,
-                    f.index(),
-                    AttrValue::Vector(color),
-                );
-            }
-        }
-    }
-
     /// Candidates in ascending id order.
-    fn candidates(&self, mesh: &Mesh, step: &Step) -> Vec<usize> {
+    pub(super) fn candidates(&self, mesh: &Mesh, step: &Step) -> Vec<usize> {
         let alive = |i: usize| match step.domain {
             Domain::Vert => mesh.contains_vert(VertId::from_index(i)),
             Domain::Edge => mesh.contains_edge(EdgeId::from_index(i)),
@@ -860,215 +796,13 @@ impl Runner<'_> {
         }
     }
 
-    fn reference(&self) -> Reference {
+    pub(super) fn reference(&self) -> Reference {
         self.scopes.last().map_or(Reference::WORLD, |s| s.reference)
-    }
-
-    /// Plans a G³ command on every matched primitive of generation Gₙ, then
-    /// applies the plans.
-    fn run_command(
-        &mut self,
-        mesh: &mut Mesh,
-        step: &Step,
-        command: &Command,
-        matched: &[usize],
-        tally: &mut Tally,
-    ) -> Result<Selection, Stop> {
-        let generation = step.uid + 1;
-        let fail = |index: usize, error: CommandError| {
-            step_error(
-                step,
-                StepError::Command {
-                    domain: step.domain,
-                    index,
-                    error,
-                },
-            )
-        };
-        let call = self.calls.last().copied();
-        let reference = self.reference();
-        let mut made = Selection::new();
-        let mut plans: Vec<Plan> = Vec::with_capacity(matched.len());
-        // `split_face` only: each plan's fan, parallel to `plans`.
-        let mut fans: Vec<Fan> = Vec::new();
-        for &i in matched {
-            if let Some(call) = call {
-                if let Some(products) = self.applied.get(&(call, step.uid, i as u32)) {
-                    made.append(products);
-                    tally.shared += 1;
-                    continue;
-                }
-            }
-            if let Some(p) = &command.probability {
-                let p = self.eval(mesh, step, generation, i, step.domain, p);
-                if !(0.0..=1.0).contains(&p) {
-                    return Err(Stop::Fail(step_error(
-                        step,
-                        StepError::Probability {
-                            domain: step.domain,
-                            index: i,
-                            value: p,
-                        },
-                    )));
-                }
-                if random::unit(self.seed, step.key, lineage::key(mesh, step.domain, i), 0) >= p {
-                    tally.skipped += 1;
-                    continue;
-                }
-            }
-            let (seed, key) = (self.seed, step.key);
-            let id = lineage::key(mesh, step.domain, i);
-            let spread = |draw: u64| 2.0 * random::unit(seed, key, id, draw) - 1.0;
-            let (plan, up) = {
-                let mut eval = |c: &Condition| self.eval(mesh, step, generation, i, step.domain, c);
-                commands::plan(mesh, command, i, &reference, &mut eval, &spread)
-            }
-            .map_err(|e| fail(i, e))?;
-            if command.kind == CommandKind::SplitFace {
-                let ring: Vec<VertId> = mesh.face_verts(FaceId::from_index(i)).collect();
-                let nodes = match &command.nodes {
-                    None => ring,
-                    Some(c) => ring
-                        .into_iter()
-                        .filter(|v| {
-                            self.eval(mesh, step, generation, v.index(), Domain::Vert, c) != 0.0
-                        })
-                        .collect(),
-                };
-                fans.push(Fan { up, nodes });
-            }
-            plans.push(plan);
-        }
-        tally.applied = plans.len();
-        // Each plan adds at most a node, a few edges and faces per side.
-        let coming: usize = 4 * plans.len() + fans.iter().map(|f| 2 * f.nodes.len()).sum::<usize>();
-        self.check_size(mesh, step, coming)?;
-        let policy = step.policy.unwrap_or(self.policy());
-        let testing = policy == Policy::Intersect;
-        // Plans apply in plan order (ascending target). Under `intersect` an
-        // application is tested against what the ones before it made, so
-        // the order stays canonical; otherwise the testing hook may shuffle
-        // it (a seeded Fisher–Yates), and only then is an order list kept.
-        let shuffle = self.shuffle.filter(|_| !testing);
-        let order: Option<Vec<usize>> = shuffle.map(|shuffle| {
-            let mut order: Vec<usize> = (0..plans.len()).collect();
-            for k in (1..order.len()).rev() {
-                let j = random::int_in(shuffle, 0, k as u64, 0, 0, k as i64) as usize;
-                order.swap(k, j);
-            }
-            order
-        });
-        // The nodes the plans make, for the merge below in plan order: one
-        // flat list (not a vector and a heap block per plan: 6 MB of the
-        // peak at 216k plans), tagged with the plan only when shuffled.
-        let mut new_nodes: Vec<VertId> = Vec::new();
-        let mut new_node_plans: Vec<u32> = Vec::new();
-        let count = plans.len();
-        for nth in 0..count {
-            let k = order.as_ref().map_or(nth, |order| order[nth]);
-            let plan = &plans[k];
-            let fan = fans.get(k);
-            if testing && self.guard.would_intersect(mesh, command.kind, plan, fan) {
-                tally.rejected += 1;
-                tally.applied -= 1;
-                let reaction = step.on_intersection.unwrap_or(self.reaction());
-                let error = || {
-                    step_error(
-                        step,
-                        StepError::Intersects {
-                            domain: step.domain,
-                            index: plan.target(),
-                            op: step.op.name(),
-                            uncaught: "",
-                        },
-                    )
-                };
-                match reaction {
-                    OnIntersection::Skip => continue,
-                    OnIntersection::Error => return Err(Stop::Fail(error())),
-                    OnIntersection::CancelCompound => {
-                        tally.cancelled += 1;
-                        tally.cancelled_compounds += 1;
-                        return Err(Stop::Cancel(CancelLevel::Compound, error()));
-                    }
-                    OnIntersection::CancelRule => {
-                        tally.cancelled += 1;
-                        return Err(Stop::Cancel(CancelLevel::Rule, error()));
-                    }
-                }
-            }
-            let parent = lineage::key(mesh, step.domain, plan.target());
-            let products = commands::apply(mesh, command.kind, plan, fan, generation)
-                .map_err(|e| fail(plan.target(), e))?;
-            if self.program.draws_per_primitive {
-                lineage::assign_children(mesh, step.key, parent, &products);
-            }
-            if testing {
-                self.guard.accept(mesh, &products);
-            }
-            if let Some(call) = call {
-                self.applied
-                    .insert((call, step.uid, plan.target() as u32), products.clone());
-            }
-            new_nodes.extend_from_slice(&products.verts);
-            if order.is_some() {
-                new_node_plans.extend(std::iter::repeat_n(k as u32, products.verts.len()));
-            }
-            made.append(&products);
-        }
-        // Thesis §3.1.2.1: after the command, the nodes it made (or, for
-        // edit_node, moved) are merged with those they coincide with. They
-        // are listed in plan order (ascending target), not id order: ids
-        // follow the order plans were applied in, and the first listed of
-        // several new nodes survives.
-        let touched: Vec<VertId> = if command.kind == CommandKind::EditNode {
-            plans
-                .iter()
-                .map(|p| VertId::from_index(p.target()))
-                .collect()
-        } else if order.is_some() {
-            // Stable: a plan's nodes keep their order.
-            let mut tagged: Vec<(u32, VertId)> =
-                new_node_plans.into_iter().zip(new_nodes).collect();
-            tagged.sort_by_key(|&(k, _)| k);
-            tagged.into_iter().map(|(_, v)| v).collect()
-        } else {
-            new_nodes
-        };
-        // The merge and the bookkeeping below do not read the plans.
-        drop((plans, fans, order));
-        let reshapes = matches!(
-            command.kind,
-            CommandKind::SplitEdge | CommandKind::SplitFace | CommandKind::EditNode
-        );
-        match policy {
-            Policy::Merge { tolerance } => {
-                tally.merged += self
-                    .merger
-                    .merge(mesh, &touched, tolerance, &mut made)
-                    .map_err(|e| step_error(step, StepError::Merging(e)))?;
-                self.guard.invalidate();
-            }
-            Policy::None => {
-                self.merger.record(mesh, &touched);
-                self.guard.record(mesh, &made, reshapes);
-            }
-            Policy::Intersect => {
-                self.merger.record(mesh, &touched);
-                self.guard.finish_command(reshapes);
-            }
-        }
-        // Products shared from another scope may since have been merged away.
-        made.verts.retain(|&v| mesh.contains_vert(v));
-        made.edges.retain(|&e| mesh.contains_edge(e));
-        made.faces.retain(|&f| mesh.contains_face(f));
-        made.normalize();
-        Ok(made)
     }
 
     /// The reaction to intersections in force: the innermost compound
     /// call's, or the file's.
-    fn reaction(&self) -> OnIntersection {
+    pub(super) fn reaction(&self) -> OnIntersection {
         *self
             .reactions
             .last()
@@ -1076,7 +810,7 @@ impl Runner<'_> {
     }
 
     /// The policy in force: the innermost compound call's, or the file's.
-    fn policy(&self) -> Policy {
+    pub(super) fn policy(&self) -> Policy {
         *self
             .policies
             .last()
@@ -1197,14 +931,14 @@ impl Runner<'_> {
 
 /// Slot values for a condition: parameters as given, element properties
 /// computed on first read and remembered for the rest of the evaluation.
-struct LazyProperties<'a> {
-    params: &'a [f64],
-    ctx: &'a Context<'a>,
-    domain: Domain,
-    index: usize,
-    values: [f64; property::SLOT_COUNT],
+pub(super) struct LazyProperties<'a> {
+    pub(super) params: &'a [f64],
+    pub(super) ctx: &'a Context<'a>,
+    pub(super) domain: Domain,
+    pub(super) index: usize,
+    pub(super) values: [f64; property::SLOT_COUNT],
     /// Bit k set: `values[k]` holds property k.
-    known: u64,
+    pub(super) known: u64,
 }
 
 const _: () = assert!(property::SLOT_COUNT <= u64::BITS as usize);
@@ -1220,46 +954,5 @@ impl SlotSource for LazyProperties<'_> {
             self.known |= 1 << k;
         }
         self.values[k]
-    }
-}
-
-/// `x` clamped into [0, 1]; NaN → 0.
-fn unit(x: f64) -> f64 {
-    if x.is_nan() {
-        0.0
-    } else {
-        x.clamp(0.0, 1.0)
-    }
-}
-
-/// HSV (hue in turns, wrapping; saturation and value clamped) to RGB.
-fn hsv_to_rgb(h: f64, s: f64, v: f64) -> [f64; 3] {
-    let h = if h.is_finite() { h - h.floor() } else { 0.0 };
-    let (s, v) = (unit(s), unit(v));
-    let sector = h * 6.0;
-    let i = (sector.floor() as usize).min(5);
-    let f = sector - i as f64;
-    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
-    match i {
-        0 => [v, t, p],
-        1 => [q, v, p],
-        2 => [p, v, t],
-        3 => [p, q, v],
-        4 => [t, p, v],
-        _ => [v, p, q],
-    }
-}
-
-#[cfg(test)]
-mod color_tests {
-    use super::hsv_to_rgb;
-
-    #[test]
-    fn hsv_primaries_and_wrap() {
-        assert_eq!(hsv_to_rgb(0.0, 1.0, 1.0), [1.0, 0.0, 0.0]);
-        assert_eq!(hsv_to_rgb(1.0 / 3.0, 1.0, 1.0)[1], 1.0);
-        assert_eq!(hsv_to_rgb(2.0 / 3.0, 1.0, 1.0)[2], 1.0);
-        assert_eq!(hsv_to_rgb(1.25, 0.0, 0.5), [0.5; 3]);
-        assert_eq!(hsv_to_rgb(f64::NAN, 2.0, -1.0), [0.0; 3]);
     }
 }

@@ -104,7 +104,7 @@ impl PnOptions {
 }
 
 /// Largest level accepted.
-pub const MAX_PN_LEVEL: u32 = 1 << 12;
+pub const MAX_PN_LEVEL: u32 = 64;
 
 /// Errors of the PN smoother.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -635,7 +635,7 @@ pub fn pn_triangles(
                 return Err(PnError::InvalidOption {
                     name: "level",
                     value: f64::from(n),
-                    reason: "must be in 1..=4096",
+                    reason: "must be in 1..=64 (MAX_PN_LEVEL)",
                 });
             }
         }
@@ -657,7 +657,7 @@ pub fn pn_triangles(
                 return Err(PnError::InvalidOption {
                     name: "max_level",
                     value: f64::from(max_level),
-                    reason: "must be in 1..=4096",
+                    reason: "must be in 1..=64 (MAX_PN_LEVEL)",
                 });
             }
         }

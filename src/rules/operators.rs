@@ -1315,8 +1315,8 @@ const NURBS_PART: &[ParamDef] = tessellation_params!(RELATIVE);
 
 /// Most halvings of an edge adaptive tessellation accepts.
 pub const MAX_TESSELLATION_LEVEL: u32 = 24;
-/// Largest PN level (a triangle becomes level² triangles).
-pub const MAX_PN_LEVEL: u32 = 64;
+/// Largest PN level (a triangle becomes level² triangles): the pillar's.
+pub use crate::nurbs::pn::MAX_PN_LEVEL;
 
 const CELL_SKIN: ParamDef = above(
     "cell",

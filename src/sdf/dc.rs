@@ -41,7 +41,6 @@ use std::time::Duration;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
-use crate::sdf::aabb::Aabb;
 use crate::sdf::error::{Result, SdfError};
 use crate::sdf::grid::{
     lidx, sample_block, BlockSamples, Field, FieldEval, Grid, MeshOptions, SampleScratch, BLOCK, BP,
@@ -130,8 +129,7 @@ pub(crate) fn mesh_blocks(
     // Phase 2: flips, survivors, symbolic triangles.
     let p2: Vec<Phase2> = p1
         .par_iter()
-        .enumerate()
-        .map(|(slot, b)| ctx.phase2(slot, b))
+        .map(|b| ctx.phase2(b))
         .collect::<Result<_>>()?;
     let ntri: u64 = p2.iter().map(|b| b.tris.len() as u64).sum();
     if ntri > opts.limits.max_triangles {
@@ -173,9 +171,8 @@ pub(crate) fn mesh_blocks(
         })
         .collect::<Result<_>>()?;
     let mut positions: Vec<[f64; 3]> = Vec::with_capacity(acc as usize);
-    for (slot, (a, b)) in p1.iter().zip(&p2).enumerate() {
+    for (a, b) in p1.iter().zip(&p2) {
         positions.extend_from_slice(&a.loop_pos);
-        let _ = slot;
         for k in &b.survivors {
             let j = a
                 .edge_keys
@@ -565,7 +562,7 @@ impl Ctx<'_> {
         k == 2 && loops[0] == loops[1]
     }
 
-    fn phase2(&self, slot: usize, b: &Phase1) -> Result<Phase2> {
+    fn phase2(&self, b: &Phase1) -> Result<Phase2> {
         let mut out = Phase2 {
             survivors: Vec::new(),
             tris: Vec::new(),
@@ -678,8 +675,6 @@ impl Ctx<'_> {
                 }
             }
         }
-        let _ = slot;
-        let _ = Aabb::EMPTY;
         Ok(out)
     }
 }

@@ -57,6 +57,7 @@
 //!
 //! The choice and its reason are in [`MeshFieldReport`].
 
+use crate::geom::edge_key::undirected as ukey;
 use glam::DVec3;
 
 use crate::sdf::aabb::Aabb;
@@ -643,10 +644,7 @@ impl MeshField {
 
     /// (unsigned, signed) distance with an optional distance upper bound.
     pub fn signed_distance_hint(&self, p: DVec3, bound: Option<f64>) -> (f64, f64) {
-        let mut seed = None;
-        let r = self.signed_distance_seeded(p, bound, &mut seed);
-        let _ = seed;
-        r
+        self.signed_distance_seeded(p, bound, &mut None)
     }
 
     /// [`MeshField::signed_distance_hint`] that also starts from, and
@@ -750,11 +748,6 @@ fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     let det = a.dot(b.cross(c));
     let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
     2.0 * libm::atan2(det, den)
-}
-
-fn ukey(a: u32, b: u32) -> u64 {
-    let (x, y) = if a < b { (a, b) } else { (b, a) };
-    ((x as u64) << 32) | y as u64
 }
 
 /// Binned-SAH BVH (thesis §2.3.2's cost and bucket method, applied to

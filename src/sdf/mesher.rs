@@ -117,7 +117,7 @@ pub fn mesh(field: &dyn Field, opts: &MeshOptions) -> Result<MeshOutput> {
 
 fn run(field: &dyn Field, grid: &Grid, opts: &MeshOptions) -> Result<MeshOutput> {
     let t0 = Instant::now();
-    let (live, culled, evals) = live_blocks(grid, field, opts.threads);
+    let (live, culled, evals) = live_blocks(grid, field);
     opts.progress.add_total(live.len());
     let nb = grid.blocks();
     let mut out = match opts.mesher {

@@ -10,15 +10,18 @@
 //! ```
 //!
 //! Modules:
-//! - [`tree`]: node kinds, validation with located errors, contracts
-//!   (exact / bound / Lipschitz, decision D1) and sublevel-set bounds.
+//! - [`tree`]: node kinds, validation with located errors; [`contract`]:
+//!   contracts (exact / bound / Lipschitz, decision D1) and sublevel-set
+//!   bounds.
 //! - [`primitives`]: the distance functions (local frame, axis +Z, D2).
-//! - [`tape`]: compilation to a register tape; batched evaluation without
-//!   allocation; the order-independent smooth operations (D6).
+//! - [`tape`]: compilation to a register tape; [`eval`]: its batched
+//!   evaluation without allocation, the order-independent smooth
+//!   operations (D6).
 //! - [`mesh_field`]: imported meshes as distance fields (BVH, exact
 //!   point–triangle distance, pseudonormal or winding-number sign).
 //! - [`table`]: the face-consistent marching-cubes table (D4).
-//! - [`grid`]: options, grid conventions, sparse block sampling.
+//! - [`grid`]: options and grid conventions; [`sample`]: sparse block
+//!   sampling.
 //! - [`mesher`]: the driver (limits, parallel blocks, deterministic
 //!   assembly); [`mc`] marching cubes; [`dc`] manifold dual contouring.
 //! - [`skin`]: the skeleton skin field (spec §4.4).
@@ -49,13 +52,16 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod aabb;
+pub mod contract;
 pub mod dc;
 pub mod error;
+pub mod eval;
 pub mod grid;
 pub mod mc;
 pub mod mesh_field;
 pub mod mesher;
 pub mod primitives;
+pub mod sample;
 pub mod skin;
 pub mod table;
 pub mod tape;

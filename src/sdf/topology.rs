@@ -139,7 +139,7 @@ pub struct EdgeCounts {
 /// answer in the same time on any input order), then walks every vertex's
 /// fan across opposite half-edges.
 pub fn edge_counts(nv: usize, triangles: &[[u32; 3]], walk_fans: bool) -> EdgeCounts {
-    let key = |a: u32, b: u32| ((a as u64) << 32) | b as u64;
+    let key = crate::geom::edge_key::directed;
     let mut half: Vec<(u64, u32)> = Vec::with_capacity(triangles.len() * 3);
     for (ti, t) in triangles.iter().enumerate() {
         for k in 0..3 {

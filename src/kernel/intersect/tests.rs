@@ -1033,7 +1033,8 @@ fn close_vertices_by_grid() {
     let b = m.make_vert(p(1e-7, 0.0, 0.0));
     let c = m.make_vert(p(1.0, 1.0, 1.0));
     let d = m.make_vert(p(1.0, 1.0, 1.0 - 2.5e-7));
-    let e = m.make_vert(p(5.0, 5.0, 5.0));
+    // A vertex far from all: in no pair.
+    m.make_vert(p(5.0, 5.0, 5.0));
     let f = m.make_vert(p(-0.0, 0.0, 0.0));
     assert_eq!(close_vertices(&m, 1.5e-7), vec![(a, b), (a, f), (b, f)]);
     assert_eq!(close_vertices(&m, 2.5e-7), vec![(a, b), (a, f), (b, f)]);
@@ -1044,7 +1045,6 @@ fn close_vertices_by_grid() {
     assert_eq!(close_vertices(&m, 0.0), vec![(a, f)], "-0 equals +0");
     assert!(close_vertices(&m, 1e-9).contains(&(a, f)));
     assert_eq!(close_vertices(&m, 100.0).len(), 15);
-    let _ = e;
     // Straddling cell boundaries in every axis.
     let mut m = Mesh::new();
     let cell = 4.0 * 0.1;

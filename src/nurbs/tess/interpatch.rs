@@ -329,7 +329,7 @@ impl Builder<'_> {
         (0..4).find(|&k| d.poles[k] && on[k])
     }
 
-    fn pole_vertex(&mut self, k: usize, uv: DVec2) -> u32 {
+    fn pole_vertex(&mut self, k: usize) -> u32 {
         // Canonical parameter of a pole: the border value in the fixed coordinate, the domain
         // start in the free one.
         let d = self.ctx.dom;
@@ -340,7 +340,6 @@ impl Builder<'_> {
                 2 => DVec2::new(d.lo.x, d.lo.y),
                 _ => DVec2::new(d.lo.x, d.hi.y),
             };
-            let _ = uv;
             self.pole_ids[k] = self.push(canon);
         }
         self.pole_ids[k]
@@ -360,7 +359,7 @@ impl Builder<'_> {
         };
         let uv = DVec2::new(self.ctx.net.breaks_u[ia], self.ctx.net.breaks_v[jb]);
         if let Some(k) = self.pole_of(uv) {
-            return self.pole_vertex(k, uv);
+            return self.pole_vertex(k);
         }
         let slot = ia * (pv + 1) + jb;
         if self.corner_ids[slot] == u32::MAX {
@@ -507,7 +506,7 @@ pub(crate) fn interpatch(
             for k in 1..ne {
                 let uv = ctx.border_uv(border, k as f64 / ne as f64);
                 let id = match bld.pole_of(uv) {
-                    Some(pk) => bld.pole_vertex(pk, uv),
+                    Some(pk) => bld.pole_vertex(pk),
                     None => bld.push(uv),
                 };
                 ids.push(id);
@@ -527,7 +526,7 @@ pub(crate) fn interpatch(
             for k in 1..ne {
                 let uv = ctx.border_uv(border, k as f64 / ne as f64);
                 let id = match bld.pole_of(uv) {
-                    Some(pk) => bld.pole_vertex(pk, uv),
+                    Some(pk) => bld.pole_vertex(pk),
                     None => bld.push(uv),
                 };
                 ids.push(id);

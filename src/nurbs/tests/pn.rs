@@ -367,15 +367,14 @@ fn bad_input_gives_typed_errors() {
         pn_triangles(&pp, &t, &n, &PnOptions::level(2), CAP),
         Err(PnError::PositionNotFinite { vertex: 3 })
     ));
+    for bad in [0, crate::nurbs::pn::MAX_PN_LEVEL + 1] {
+        assert!(matches!(
+            pn_triangles(&p, &t, &n, &PnOptions::level(bad), CAP),
+            Err(PnError::InvalidOption { .. })
+        ));
+    }
     assert!(matches!(
-        pn_triangles(&p, &t, &n, &PnOptions::level(0), CAP),
-        Err(PnError::InvalidOption { .. })
-    ));
-    assert!(matches!(
-        pn_triangles(&p, &t, &n, &PnOptions::level(100), 1000),
-        Err(PnError::TriangleLimit {
-            needed: 120_000,
-            ..
-        })
+        pn_triangles(&p, &t, &n, &PnOptions::level(64), 1000),
+        Err(PnError::TriangleLimit { needed: 49_152, .. })
     ));
 }
