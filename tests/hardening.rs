@@ -963,3 +963,96 @@ fn lint_warns_about_unnamed_steps_that_draw() {
     assert_eq!(err.matches("unnamed-random-step").count(), 1, "{err}");
     assert!(err.contains("draws.toml:3:1"), "{err}");
 }
+
+// ---- issue 34: this round's hostile inputs ----
+
+/// Runs graftal in `dir` with its address space limited to `kib` KiB
+/// (`ulimit -v`): an input that needs more memory aborts, which the test
+/// sees as a failed exit.
+fn graftal_capped(dir: &Path, kib: u64, args: &[&str]) -> Output {
+    let mut script = format!("ulimit -v {kib}; exec \"$0\"");
+    for (k, _) in args.iter().enumerate() {
+        script += &format!(" \"${}\"", k + 1);
+    }
+    std::process::Command::new("sh")
+        .current_dir(dir)
+        .arg("-c")
+        .arg(script)
+        .arg(env!("CARGO_BIN_EXE_graftal"))
+        .args(args)
+        .output()
+        .expect("sh runs")
+}
+
+#[test]
+fn a_million_empty_repeats_are_bounded_and_charged() {
+    let d = dir();
+    file(
+        d.path(),
+        "r.toml",
+        "[[step]]\ninset_faces = { thickness = 0.1 }\nrepeat = 1000000\n",
+    );
+    // Nothing is selected: it runs, in bounded memory (it took 1.4 GB).
+    let o = graftal_capped(d.path(), 900_000, &["run", "r.toml", "-o", "r.obj", "-q"]);
+    assert_clean_exit(&o, 0);
+    // Each step run costs one evaluation: over the budget it is refused
+    // before it starts, with exit 5 and no output.
+    let o = graftal_in(
+        d.path(),
+        &["run", "r.toml", "-o", "s.obj", "--max-evaluations", "1000"],
+    );
+    assert_clean_exit(&o, 5);
+    assert!(
+        stderr(&o).contains("at least 1000000 steps"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.path().join("s.obj").exists());
+}
+
+#[test]
+fn one_face_of_300000_corners_is_bounded() {
+    let d = dir();
+    let n = 91;
+    let mut text = String::new();
+    for i in 0..n {
+        let a = std::f64::consts::TAU * i as f64 / n as f64;
+        text += &format!("v {} {} 0\n", libm::cos(a), libm::sin(a));
+    }
+    text.push('f');
+    for i in 0..300_000 {
+        text += &format!(" {}", i % n + 1);
+    }
+    text.push('\n');
+    file(d.path(), "big.obj", &text);
+    // It took 1 GB and 11 s; the search now stops at its memory cap and
+    // says its counts are lower bounds.
+    let o = graftal_capped(d.path(), 600_000, &["info", "big.obj", "--json"]);
+    assert_clean_exit(&o, 0);
+    let info: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(info["searches_complete"], false, "{info}");
+    assert!(info["self_intersecting_face_pairs"].as_u64().unwrap() > 1000);
+}
+
+#[test]
+fn a_device_is_not_read_as_a_rule_file() {
+    if !Path::new("/dev/zero").exists() {
+        return;
+    }
+    let d = dir();
+    for args in [
+        &["run", "/dev/zero", "-o", "z.obj"][..],
+        &["run", "/dev/zero", "--seeds", "0..2", "-o", "{seed}.obj"],
+        &["check", "/dev/zero"],
+        &["info", "/dev/zero"],
+    ] {
+        let o = graftal_in(d.path(), args);
+        assert_clean_exit(&o, 2);
+        assert!(
+            stderr(&o).contains("not a regular file"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+    assert!(entries(d.path()).is_empty());
+}

@@ -77,6 +77,8 @@ pub enum StepError {
     NotFinite { name: String, value: f64 },
     #[error("{count} expression evaluations, over the limit of {limit}; raise it with --max-evaluations if the work is intended")]
     Evaluations { count: u64, limit: u64 },
+    #[error("the program runs at least {steps} steps, one evaluation each, over the limit of {limit}; raise it with --max-evaluations if the work is intended")]
+    TooManySteps { steps: u64, limit: u64 },
     #[error("the run passed its time limit (--timeout)")]
     Timeout,
     #[error("the model has {total} primitives, over the limit of {limit}; raise it with --max-primitives if the growth is intended")]
@@ -122,7 +124,9 @@ impl StepError {
     /// The family of exit codes the error belongs to.
     pub fn kind(&self) -> RunErrorKind {
         match self {
-            StepError::Evaluations { .. } => RunErrorKind::EvaluationLimit,
+            StepError::Evaluations { .. } | StepError::TooManySteps { .. } => {
+                RunErrorKind::EvaluationLimit
+            }
             StepError::Timeout => RunErrorKind::Timeout,
             StepError::TooLarge { .. }
             | StepError::WouldBeTooLarge { .. }

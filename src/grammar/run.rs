@@ -195,6 +195,21 @@ pub(super) struct Runner<'p> {
 /// Runs the program and returns the mesh with per-step statistics.
 pub fn run(program: &Program, options: &RunOptions) -> Result<RunOutput, RunError> {
     let mut runner = Runner::new(program, options);
+    // Every top-level step costs at least one evaluation: a program that
+    // unrolls to more steps than the budget is refused before the work.
+    let steps = program.steps.len() as u64;
+    if steps > options.max_evaluations {
+        let error = StepError::TooManySteps {
+            steps,
+            limit: options.max_evaluations,
+        };
+        return Err(RunError {
+            kind: error.kind(),
+            step: "(all)".into(),
+            location: program.file.clone(),
+            error,
+        });
+    }
     runner.evaluate_params()?;
     let mut mesh = Mesh::new();
     if program.uses_graph {
@@ -501,6 +516,10 @@ impl Runner<'_> {
         let started = Instant::now();
         let generation = step.uid + 1;
         let mut tally = Tally::default();
+        // A step is work even when it selects nothing: a runaway `repeat`
+        // meets --max-evaluations, a deterministic bound.
+        self.evaluations = self.evaluations.saturating_add(1);
+        self.check_size(mesh, step, 0)?;
         // A compound call's part and material are its steps' default; its
         // steps tag their own products.
         let compound = matches!(step.op, Op::Compound { .. });

@@ -662,9 +662,11 @@ impl PairLimits {
     }
 }
 
-/// Most pairs of multi-chunk elements a search remembers (16 bytes each
-/// and the set's overhead: about 40 MB) before it stops early.
+/// Most pairs of multi-chunk elements a search remembers, over all its
+/// tasks (16 bytes each and the sets' overhead: about 40 MB), before it
+/// stops early: each task may hold its share.
 const MAX_SHARED_PAIRS: usize = 1 << 20;
+const SHARED_PAIRS_PER_TASK: usize = MAX_SHARED_PAIRS / TASKS;
 
 /// What a pair search found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -691,6 +693,9 @@ struct Found {
     keep: usize,
     budget: u64,
     exhausted: bool,
+    /// Stopped by the memory cap on remembered pairs, not by its tests:
+    /// more tests would not help, so the task is not run again.
+    capped: bool,
 }
 
 impl Found {
@@ -702,6 +707,7 @@ impl Found {
             keep,
             budget,
             exhausted: false,
+            capped: false,
         }
     }
 
@@ -729,9 +735,10 @@ impl Found {
             // of a million corners winding over itself) would grow the set
             // by every test. Past the cap the search stops, its counts
             // lower bounds, as when the test budget is spent.
-            if self.shared.len() >= MAX_SHARED_PAIRS {
+            if self.shared.len() >= SHARED_PAIRS_PER_TASK {
                 self.budget = 0;
                 self.exhausted = true;
+                self.capped = true;
             }
         } else {
             self.single += 1;
@@ -962,7 +969,7 @@ pub(crate) fn search_pairs(
         let again: Vec<usize> = all
             .iter()
             .copied()
-            .filter(|&k| results[k].exhausted)
+            .filter(|&k| results[k].exhausted && !results[k].capped)
             .collect();
         if again.is_empty() || left < again.len() as u64 {
             break;
