@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm fuzz fuzz-smoke clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -63,6 +63,21 @@ contact-sheet:
 test-slurm:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal tests/slurm/run.sh
+
+## Fuzz smoke (fuzz/smoke.sh): builds the libFuzzer targets (cargo-fuzz on
+## stable, RUSTC_BOOTSTRAP=1), replays every committed regression and seed of
+## each target, then fuzzes each SMOKE_SECONDS (default 20); fails on any
+## crash, timeout or out-of-memory input. Scratch corpus, logs and failing
+## inputs in $(TARGET_DIR)/fuzz-smoke. Not part of `make test`; CI (`.ci/run`)
+## runs it after. ~8 min on 2 cores from a cold build, 6.5 of them building
+## (see fuzz/README.md).
+fuzz-smoke:
+	fuzz/smoke.sh
+
+## Longer fuzzing, not part of CI (fuzz/fuzz.sh): every target FUZZ_SECONDS
+## (default 60), growing fuzz/corpus/.
+fuzz:
+	fuzz/fuzz.sh
 
 ## Criterion benchmarks (release).
 bench:

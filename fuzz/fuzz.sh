@@ -13,9 +13,10 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 
-ALL=(rules_compile rules_run mesh_obj mesh_stl mesh_ply mesh_gltf mesh_glb info_report error_render)
+# shellcheck source-path=SCRIPTDIR source=targets.sh
+. ./targets.sh
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=("${ALL[@]}")
+[ ${#targets[@]} -gt 0 ] || targets=("${ALL_TARGETS[@]}")
 seconds=${FUZZ_SECONDS:-60}
 nice_level=${FUZZ_NICE-19}
 target_dir=${FUZZ_TARGET_DIR:-target}
@@ -28,20 +29,8 @@ command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 cargo fuzz build -s none --target-dir "$target_dir"
 
 # Seeds (committed), regressions (every input that once failed: replayed
-# first), and the growing corpus (not committed).
-seeds_of() {
-    case $1 in
-        rules_compile | rules_run) echo rules ;;
-        *) echo "$1" ;;
-    esac
-}
-dict_of() {
-    case $1 in
-        rules_compile | rules_run | error_render) echo "-dict=rules.dict" ;;
-        mesh_obj | mesh_stl | mesh_ply | mesh_gltf | mesh_glb) echo "-dict=${1#mesh_}.dict" ;;
-    esac
-}
-
+# first), and the growing corpus (not committed; libFuzzer writes only to
+# the first folder it is given).
 run=()
 [ -z "$nice_level" ] || run=(nice -n "$nice_level")
 failed=()

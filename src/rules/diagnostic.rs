@@ -52,9 +52,12 @@ impl RuleError {
         span: Option<Range<usize>>,
         message: impl Into<String>,
     ) -> RuleError {
+        // Into the text, onto character boundaries, and out of `\r\n`
+        // pairs (an offset between the two is the break itself); never
+        // reversed.
         let span = span.map(|r| {
-            let start = floor_char_boundary(&file.text, r.start.min(file.text.len()));
-            let end = floor_char_boundary(&file.text, r.end.clamp(start, file.text.len()));
+            let start = snap(&file.text, r.start);
+            let end = snap(&file.text, r.end.max(start));
             start..end
         });
         let location = match &span {
@@ -137,15 +140,19 @@ impl RuleError {
                 let _ = writeln!(out, "{number:>gutter$} │ {shown}");
                 continue;
             }
+            // The span's part on this line, in bytes: a span that starts
+            // at the line break is marked just past the line's last
+            // character, one that goes on to later lines up to the break.
+            let start_byte = span.start.clamp(range.start, range.end);
+            let end_byte = span.end.clamp(start_byte, range.end);
             // Caret columns in characters within this line.
-            let start = text[range.start..span.start.max(range.start)]
-                .chars()
-                .count();
-            let end_byte = span.end.clamp(span.start, range.end);
-            let width = text[span.start..end_byte].chars().count().max(1);
+            let start = text[range.start..start_byte].chars().count();
+            let width = text[start_byte..end_byte].chars().count().max(1);
             let (shown, offset) = window(content, start, width);
             let _ = writeln!(out, "{number:>gutter$} │ {shown}");
             let caret_at = start - offset;
+            // In a window, the underline stops at the window's edge.
+            let width = width.min(shown.chars().count().saturating_sub(caret_at).max(1));
             let underline = if width == 1 {
                 "▲".to_owned()
             } else {
@@ -235,9 +242,11 @@ pub fn line_ranges(text: &str) -> Vec<Range<usize>> {
 }
 
 /// 1-based line and column (in characters) of a byte offset; line breaks
-/// as in [`line_ranges`].
+/// as in [`line_ranges`]. An offset past the end, inside a character or
+/// between the `\r` and the `\n` of a pair is taken as the end, the
+/// character's start or the `\r`.
 pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let offset = floor_char_boundary(text, offset.min(text.len()));
+    let offset = snap(text, offset);
     let bytes = text.as_bytes();
     let mut line = 1;
     let mut line_start = 0;
@@ -249,11 +258,8 @@ pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
                 line_start = i + 1;
             }
             b'\r' => {
+                // The break is the pair (`offset` is never between the two).
                 if bytes.get(i + 1) == Some(&b'\n') {
-                    // The break is the pair; an offset between them is still on this line.
-                    if i + 1 >= offset {
-                        break;
-                    }
                     i += 1;
                 }
                 line += 1;
@@ -291,6 +297,19 @@ pub fn content_span(text: &str, literal: Range<usize>, content: &str) -> Range<u
     start..(start + content.len()).min(text.len())
 }
 
+/// `offset` moved into `text`, onto the start of its character, and from
+/// between the `\r` and the `\n` of a pair back to the `\r`: a line break
+/// is one place, on the line it ends.
+fn snap(text: &str, offset: usize) -> usize {
+    let offset = floor_char_boundary(text, offset.min(text.len()));
+    let bytes = text.as_bytes();
+    if offset > 0 && bytes[offset - 1] == b'\r' && bytes.get(offset) == Some(&b'\n') {
+        offset - 1
+    } else {
+        offset
+    }
+}
+
 pub(crate) fn floor_char_boundary(text: &str, mut offset: usize) -> usize {
     while !text.is_char_boundary(offset) {
         offset -= 1;
@@ -303,6 +322,9 @@ pub(crate) fn floor_char_boundary(text: &str, mut offset: usize) -> usize {
 pub fn invalid_utf8_offset(bytes: &[u8]) -> Option<usize> {
     std::str::from_utf8(bytes).err().map(|e| e.valid_up_to())
 }
+
+#[cfg(test)]
+mod props;
 
 #[cfg(test)]
 mod tests {
@@ -386,6 +408,29 @@ mod tests {
         let e = RuleError::at(&file("a = é"), Some(5..99), "x");
         assert_eq!(e.span, Some(4..6));
         assert!(e.render(false).contains('▲'));
+    }
+
+    #[test]
+    fn a_span_between_cr_and_lf_is_the_line_break() {
+        // `graftal check` on the 3 bytes `'\r\n` (issue 34): TOML's error
+        // is at the `\n`, past the end of line 1 as the snippet cut it.
+        let text = "'\r\n";
+        for at in [1, 2] {
+            let e = RuleError::at(&file(text), Some(at..at), "key with no value");
+            assert_eq!(e.span, Some(1..1));
+            assert_eq!(e.location, "f.toml:1:2");
+            assert_eq!(
+                e.render(false),
+                "  × key with no value\n  ╭─[f.toml:1:2]\n1 │ '\n  ·  ▲\n  ·  ╰── here\n  ╰────\n"
+            );
+        }
+        // A span from inside the pair to the next line.
+        let e = RuleError::at(&file("ab\r\ncd"), Some(3..6), "x");
+        assert_eq!(e.span, Some(2..6));
+        assert_eq!(e.location, "f.toml:1:3");
+        assert!(e.render(false).contains("1 │ ab\n  ·   ▲\n"));
+        assert_eq!(line_column("a\r\nb", 2), (1, 2));
+        assert_eq!(line_column("a\r\nb", 3), (2, 1));
     }
 
     #[test]
