@@ -90,7 +90,7 @@ impl RuleError {
 
     /// `file:line:column: message`, for logs and scripts.
     pub fn headline(&self) -> String {
-        format!("{}: {}", self.location, self.message)
+        visible(&format!("{}: {}", self.location, self.message))
     }
 
     /// The message, the snippet with the caret and label, and the help,
@@ -104,12 +104,12 @@ impl RuleError {
             }
         };
         let mut out = String::new();
-        let _ = writeln!(out, "  {} {}", paint("31", "×"), self.message);
+        let _ = writeln!(out, "  {} {}", paint("31", "×"), visible(&self.message));
         if let Some(span) = &self.span {
             self.render_snippet(&mut out, span.clone(), &paint);
         }
         if let Some(help) = &self.help {
-            let _ = writeln!(out, "  {} {help}", paint("36", "help:"));
+            let _ = writeln!(out, "  {} {}", paint("36", "help:"), visible(help));
         }
         out
     }
@@ -131,7 +131,7 @@ impl RuleError {
         }
         let gutter = last.to_string().len();
         let pad = " ".repeat(gutter);
-        let _ = writeln!(out, "{pad} ╭─[{}]", self.location);
+        let _ = writeln!(out, "{pad} ╭─[{}]", visible(&self.location));
         for number in first..=last {
             let range = lines[number - 1].clone();
             let content = &text[range.clone()];
@@ -171,7 +171,7 @@ impl RuleError {
                 "{pad} · {}{} {}",
                 " ".repeat(stem),
                 paint("35", "╰──"),
-                self.label
+                visible(&self.label)
             );
         }
         let _ = writeln!(out, "{pad} ╰────");
@@ -191,7 +191,7 @@ impl std::ops::Deref for RuleError {
 /// of the line precede the first one shown (the `…` counted in).
 fn window(line: &str, start: usize, width: usize) -> (String, usize) {
     let total = line.chars().count();
-    let clean = |s: &str| s.replace('\t', " ");
+    let clean = |s: &str| visible(&s.replace('\t', " "));
     if total <= SNIPPET_WIDTH {
         return (clean(line), 0);
     }
@@ -211,6 +211,22 @@ fn window(line: &str, start: usize, width: usize) -> (String, usize) {
         shown.push('…');
     }
     (shown, offset)
+}
+
+/// `text` safe to print on a terminal: control characters (an escape
+/// sequence in a hostile rule file could move the cursor or retitle the
+/// window) become their visible pictures, one character for one, so
+/// columns and carets stay where they were. Tabs and line breaks stay.
+pub fn visible(text: &str) -> String {
+    text.chars()
+        .map(|c| match c {
+            '\t' | '\n' => c,
+            '\u{0}'..='\u{1f}' => char::from_u32(0x2400 + c as u32).unwrap_or('\u{fffd}'),
+            '\u{7f}' => '\u{2421}',
+            '\u{80}'..='\u{9f}' => '\u{fffd}',
+            c => c,
+        })
+        .collect()
 }
 
 /// Byte ranges of the lines of `text`, without their line breaks (`\n`,
@@ -328,6 +344,24 @@ mod props;
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn control_characters_are_shown_not_sent() {
+        let file = SourceFile {
+            name: "e.toml".into(),
+            text: "a = \"\u{1b}]0;owned\u{7}\"\nb".into(),
+        };
+        let e = RuleError::at(&file, Some(5..6), "bad \u{1b}[2J value");
+        for shown in [e.headline(), e.render(false)] {
+            assert!(
+                !shown.contains('\u{1b}') && !shown.contains('\u{7}'),
+                "{shown:?}"
+            );
+            assert!(shown.contains('\u{241b}'), "{shown:?}");
+        }
+        assert_eq!(visible("a\tb\u{0}\u{7f}"), "a\tb\u{2400}\u{2421}");
+    }
+
     use super::*;
 
     fn file(text: &str) -> SourceFile {

@@ -19,13 +19,16 @@ use crate::rules::compile::{compile, load, source_from_bytes};
 /// (in a window for long lines), and the whole stays small.
 pub(super) fn assert_renders_consistently(e: &RuleError) {
     let headline = e.headline();
-    assert_eq!(headline, format!("{}: {}", e.location, e.message));
+    assert_eq!(
+        headline,
+        super::visible(&format!("{}: {}", e.location, e.message))
+    );
     let plain = e.render(false);
     let color = e.render(true);
-    // (Unless the text brings escapes of its own: they are shown as they are.)
-    if !e.text.contains('\x1b') {
-        assert_eq!(strip_ansi(&color), plain);
-    }
+    // Escapes the text brings are shown as pictures, so the only ones in
+    // the coloured form are ours.
+    assert!(!plain.contains('\x1b') && !headline.contains('\x1b'));
+    assert_eq!(strip_ansi(&color), plain);
     let own = e.message.len() + e.label.len() + e.help.as_ref().map_or(0, String::len);
     assert!(
         plain.len() <= 2 * own + 3 * e.location.len() + 6 * 4 * (SNIPPET_WIDTH + 20),
@@ -87,10 +90,12 @@ pub(super) fn assert_renders_consistently(e: &RuleError) {
         "{plain}"
     );
     let caret_at = underline.chars().take_while(|&c| c == ' ').count();
-    let content: Vec<char> = text[line_ranges(text)[line - 1].clone()]
-        .chars()
-        .map(|c| if c == '\t' { ' ' } else { c })
-        .collect();
+    // Tabs are shown as a space, control characters as their pictures
+    // (one character each, so columns hold).
+    let content: Vec<char> =
+        super::visible(&text[line_ranges(text)[line - 1].clone()].replace('\t', " "))
+            .chars()
+            .collect();
     let shown: Vec<char> = shown.chars().collect();
     assert!(column <= content.len() + 1);
     if content.len() <= SNIPPET_WIDTH {
