@@ -329,7 +329,9 @@ mod tests {
         assert!(builds_one_to_one(&square()));
         let (mesh, _) = mesh_from_indexed(&square()).unwrap();
         assert_eq!(
-            mesh.face_verts(FaceId(0)).map(|v| v.0).collect::<Vec<_>>(),
+            mesh.face_verts(FaceId::from_raw(0))
+                .map(|v| v.raw())
+                .collect::<Vec<_>>(),
             [0, 1, 2, 3]
         );
         for (broken, corners) in [

@@ -26,7 +26,7 @@ use glam::DVec3;
 use thiserror::Error;
 
 use super::ids::{Domain, EdgeId, FaceId, LoopId, VertId};
-use super::mesh::{DiskLink, Edge, Face, Loop, Mesh, Vert};
+use super::mesh::{normal_of, DiskLink, Edge, Face, Loop, Mesh, Occupied, Vert, SMALL_FACE};
 
 /// Why an Euler operator refused its input. The mesh is unchanged.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -106,37 +106,37 @@ impl Mesh {
         if self.contains_vert(v) {
             Ok(())
         } else {
-            Err(dead(Domain::Vert, v.0))
+            Err(dead(Domain::Vert, v.raw()))
         }
     }
     pub(crate) fn check_edge(&self, e: EdgeId) -> Result<(), KernelError> {
         if self.contains_edge(e) {
             Ok(())
         } else {
-            Err(dead(Domain::Edge, e.0))
+            Err(dead(Domain::Edge, e.raw()))
         }
     }
     pub(crate) fn check_face(&self, f: FaceId) -> Result<(), KernelError> {
         if self.contains_face(f) {
             Ok(())
         } else {
-            Err(dead(Domain::Face, f.0))
+            Err(dead(Domain::Face, f.raw()))
         }
     }
 
     // ---- private link surgery (never leaves this module) ----
 
     fn edge_mut(&mut self, e: EdgeId) -> &mut Edge {
-        self.edges.get_mut(e.0).expect("dead edge id")
+        self.edges.get_mut(e.raw()).expect("dead edge id")
     }
     fn loop_mut(&mut self, l: LoopId) -> &mut Loop {
-        self.loops.get_mut(l.0).expect("dead loop id")
+        self.loops.get_mut(l.raw()).expect("dead loop id")
     }
     fn face_mut(&mut self, f: FaceId) -> &mut Face {
-        self.faces.get_mut(f.0).expect("dead face id")
+        self.faces.get_mut(f.raw()).expect("dead face id")
     }
     fn vert_mut(&mut self, v: VertId) -> &mut Vert {
-        self.verts.get_mut(v.0).expect("dead vertex id")
+        self.verts.get_mut(v.raw()).expect("dead vertex id")
     }
 
     /// Inserts `e` into the disk cycle of its end `v`.
@@ -220,10 +220,10 @@ impl Mesh {
 
     fn new_edge_unchecked(&mut self, a: VertId, b: VertId) -> EdgeId {
         let placeholder = DiskLink {
-            prev: EdgeId(0),
-            next: EdgeId(0),
+            prev: EdgeId::from_raw(0),
+            next: EdgeId::from_raw(0),
         };
-        let e = EdgeId(self.edges.insert(Edge {
+        let e = EdgeId::from_raw(self.edges.insert(Edge {
             verts: [a, b],
             disk: [placeholder; 2],
             first_loop: None,
@@ -236,8 +236,8 @@ impl Mesh {
 
     /// Allocates a loop with self-links; the caller links it into its cycles.
     fn new_loop(&mut self, vert: VertId, edge: EdgeId, face: FaceId) -> LoopId {
-        let dummy = LoopId(0);
-        let l = LoopId(self.loops.insert(Loop {
+        let dummy = LoopId::from_raw(0);
+        let l = LoopId::from_raw(self.loops.insert(Loop {
             vert,
             edge,
             face,
@@ -272,9 +272,10 @@ impl Mesh {
 
     /// MakeVert: a new isolated vertex.
     pub fn make_vert(&mut self, position: DVec3) -> VertId {
-        let v = VertId(self.verts.insert(Vert {
+        let v = VertId::from_raw(self.verts.insert(Vert {
             position,
             edge: None,
+            slot: Occupied::Yes,
         }));
         self.attributes.on_new(Domain::Vert, v.index());
         v
@@ -412,8 +413,8 @@ impl Mesh {
         normals: Normals,
         mut side: impl FnMut(&mut Self, usize, VertId, VertId) -> EdgeId,
     ) -> FaceId {
-        let f = FaceId(self.faces.insert(Face {
-            first_loop: LoopId(0),
+        let f = FaceId::from_raw(self.faces.insert(Face {
+            first_loop: LoopId::from_raw(0),
             len: ring.len() as u32,
             normal: DVec3::ZERO,
         }));
@@ -440,9 +441,28 @@ impl Mesh {
         self.face_mut(f).first_loop = first;
         self.attributes.on_new(Domain::Face, f.index());
         if normals == Normals::Refresh {
-            self.refresh_normal(f);
+            // The ring is the face's corners from its first loop on: the
+            // same points, in the same order, as `compute_face_normal`
+            // reads, so the same bits, without walking back through the
+            // loops just written.
+            let normal = self.ring_normal(ring);
+            self.face_mut(f).normal = normal;
         }
         f
+    }
+
+    /// The unit normal of a new face's ring (zero when degenerate), as
+    /// [`Mesh::compute_face_normal`] would compute it from the face.
+    fn ring_normal(&self, ring: &[VertId]) -> DVec3 {
+        let mut small = [DVec3::ZERO; SMALL_FACE];
+        if ring.len() <= SMALL_FACE {
+            for (point, &v) in small.iter_mut().zip(ring) {
+                *point = self.position(v);
+            }
+            return normal_of(&small[..ring.len()]);
+        }
+        let points: Vec<DVec3> = ring.iter().map(|&v| self.position(v)).collect();
+        normal_of(&points)
     }
 
     /// MakeFace on a ring of edges given in ring order (each edge shares a
@@ -547,7 +567,7 @@ impl Mesh {
             Some(e) => e,
             None => self.new_edge_unchecked(a, b),
         };
-        let g = FaceId(self.faces.insert(Face {
+        let g = FaceId::from_raw(self.faces.insert(Face {
             first_loop: lb,
             len: 0,
             normal: DVec3::ZERO,
@@ -686,16 +706,16 @@ impl Mesh {
         let len = self.face(keep).len + self.face(kill).len - 2;
         self.radial_remove(l_keep);
         self.radial_remove(l_kill);
-        self.loops.remove(l_keep.0);
-        self.loops.remove(l_kill.0);
-        self.faces.remove(kill.0);
+        self.loops.remove(l_keep.raw());
+        self.loops.remove(l_kill.raw());
+        self.faces.remove(kill.raw());
         let fc = self.face_mut(keep);
         fc.len = len;
         fc.first_loop = keep_next;
         let [a, b] = ends;
         self.disk_remove(e, a);
         self.disk_remove(e, b);
-        self.edges.remove(e.0);
+        self.edges.remove(e.raw());
         self.refresh_normal(keep);
         Ok(keep)
     }
@@ -741,12 +761,12 @@ impl Mesh {
             } else {
                 self.radial_remove(l);
                 self.boundary_remove(l);
-                self.loops.remove(l.0);
+                self.loops.remove(l.raw());
             }
         }
         self.disk_remove(e, a);
         self.disk_remove(e, b);
-        self.edges.remove(e.0);
+        self.edges.remove(e.raw());
         self.merge_vert_into(keep, gone);
         self.set_position(keep, position);
         if normals == Normals::Refresh {
@@ -885,7 +905,7 @@ impl Mesh {
                         self.radial_insert(l, ek);
                     }
                     self.disk_remove(eg, other);
-                    self.edges.remove(eg.0);
+                    self.edges.remove(eg.raw());
                 }
                 None => {
                     let side = self.edge(eg).side(gone);
@@ -894,7 +914,7 @@ impl Mesh {
                 }
             }
         }
-        self.verts.remove(gone.0);
+        self.verts.remove(gone.raw());
     }
 
     fn refresh_faces_around(&mut self, v: VertId) {
@@ -962,10 +982,10 @@ impl Mesh {
         for _ in 0..len {
             let next = self.lp(l).next;
             self.radial_remove(l);
-            self.loops.remove(l.0);
+            self.loops.remove(l.raw());
             l = next;
         }
-        self.faces.remove(f.0);
+        self.faces.remove(f.raw());
     }
 
     /// KillEdge: deletes an edge and every face using it.
@@ -978,7 +998,7 @@ impl Mesh {
         let [a, b] = self.edge_verts(e);
         self.disk_remove(e, a);
         self.disk_remove(e, b);
-        self.edges.remove(e.0);
+        self.edges.remove(e.raw());
         Ok(())
     }
 
@@ -988,7 +1008,7 @@ impl Mesh {
         while let Some(e) = self.vert(v).edge {
             self.kill_edge(e)?;
         }
-        self.verts.remove(v.0);
+        self.verts.remove(v.raw());
         Ok(())
     }
 

@@ -42,7 +42,7 @@ fn make_edge_rejects_duplicates_self_loops_and_dead_vertices() {
     assert_eq!(m.make_edge(b, a), Err(KernelError::EdgeExists(b, a, e)));
     assert_eq!(m.make_edge(a, a), Err(KernelError::SameVertex(a)));
     assert!(matches!(
-        m.make_edge(a, VertId(9)),
+        m.make_edge(a, VertId::from_raw(9)),
         Err(KernelError::Dead { .. })
     ));
     assert_eq!(m.edge_count(), 1);
@@ -146,7 +146,7 @@ fn make_face_on_edges_matches_make_face_and_checks_its_edges() {
         Err(KernelError::NotARing(side_a))
     );
     assert!(matches!(
-        m.make_face_on_edges(&ring, &[base, side_b, EdgeId(99)]),
+        m.make_face_on_edges(&ring, &[base, side_b, EdgeId::from_raw(99)]),
         Err(KernelError::Dead { .. })
     ));
     assert_eq!(

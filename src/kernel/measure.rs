@@ -129,7 +129,7 @@ impl Mesh {
         let mut components = UnionFind::new(self.vert_capacity());
         for e in self.edge_ids() {
             let [a, b] = self.edge_verts(e);
-            components.union(a.0, b.0);
+            components.union(a.raw(), b.raw());
             let mut loops = self.edge_loops(e);
             match (loops.next(), loops.next(), loops.next()) {
                 (None, _, _) => wire_edges += 1,
@@ -147,9 +147,9 @@ impl Mesh {
         let mut faces_at = vec![0u32; self.vert_capacity()];
         let mut loop_at: Vec<Option<LoopId>> = vec![None; self.vert_capacity()];
         for (index, l) in self.loops.iter() {
-            let v = l.vert.0 as usize;
+            let v = l.vert.raw() as usize;
             faces_at[v] += 1;
-            loop_at[v].get_or_insert(LoopId(index));
+            loop_at[v].get_or_insert(LoopId::from_raw(index));
         }
         let mut isolated_verts = 0;
         let mut non_manifold_verts = 0;
@@ -159,8 +159,8 @@ impl Mesh {
                 isolated_verts += 1;
                 continue;
             }
-            let faces = faces_at[v.0 as usize];
-            if let (true, Some(start)) = (faces > 1, loop_at[v.0 as usize]) {
+            let faces = faces_at[v.raw() as usize];
+            if let (true, Some(start)) = (faces > 1, loop_at[v.raw() as usize]) {
                 if self.fan_faces(start, faces) < faces {
                     non_manifold_verts += 1;
                 }
@@ -175,7 +175,7 @@ impl Mesh {
         }
         let components = self
             .vert_ids()
-            .filter(|&v| components.find(v.0) == v.0)
+            .filter(|&v| components.find(v.raw()) == v.raw())
             .count();
         Tally {
             verts: self.vert_count(),

@@ -19,11 +19,23 @@ use super::attrs::{AttrValue, Attributes, LayerKind};
 use super::ids::{Domain, EdgeId, FaceId, LoopId, VertId};
 use crate::geom::polygon;
 
-#[derive(Clone, Debug)]
+#[derive(Copy, Clone, Debug)]
 pub(crate) struct Vert {
     pub(in crate::kernel) position: DVec3,
     /// Any edge of the disk cycle; `None` for an isolated vertex.
     pub(in crate::kernel) edge: Option<EdgeId>,
+    /// No information: a byte of the record's padding whose type has
+    /// spare values, so that an arena slot (`Option<Vert>`) needs no tag
+    /// (32 bytes, not 40: the edge's niche is taken by its own `Option`).
+    #[allow(dead_code)]
+    pub(in crate::kernel) slot: Occupied,
+}
+
+/// See [`Vert::slot`].
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub(crate) enum Occupied {
+    Yes = 1,
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -32,7 +44,7 @@ pub(crate) struct DiskLink {
     pub(in crate::kernel) next: EdgeId,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Copy, Clone, Debug)]
 pub(crate) struct Edge {
     pub(in crate::kernel) verts: [VertId; 2],
     /// `disk[i]` links this edge into the disk cycle of `verts[i]`.
@@ -41,7 +53,7 @@ pub(crate) struct Edge {
     pub(in crate::kernel) first_loop: Option<LoopId>,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Copy, Clone, Debug)]
 pub(crate) struct Loop {
     pub(in crate::kernel) vert: VertId,
     pub(in crate::kernel) edge: EdgeId,
@@ -52,7 +64,7 @@ pub(crate) struct Loop {
     pub(in crate::kernel) radial_prev: LoopId,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Copy, Clone, Debug)]
 pub(crate) struct Face {
     pub(in crate::kernel) first_loop: LoopId,
     pub(in crate::kernel) len: u32,
@@ -112,44 +124,44 @@ impl Mesh {
     }
 
     pub fn contains_vert(&self, v: VertId) -> bool {
-        self.verts.contains(v.0)
+        self.verts.contains(v.raw())
     }
     pub fn contains_edge(&self, e: EdgeId) -> bool {
-        self.edges.contains(e.0)
+        self.edges.contains(e.raw())
     }
     pub fn contains_face(&self, f: FaceId) -> bool {
-        self.faces.contains(f.0)
+        self.faces.contains(f.raw())
     }
 
     // ---- element iteration, always in id order ----
 
     pub fn vert_ids(&self) -> impl Iterator<Item = VertId> + '_ {
-        self.verts.iter().map(|(i, _)| VertId(i))
+        self.verts.iter().map(|(i, _)| VertId::from_raw(i))
     }
     pub fn edge_ids(&self) -> impl Iterator<Item = EdgeId> + '_ {
-        self.edges.iter().map(|(i, _)| EdgeId(i))
+        self.edges.iter().map(|(i, _)| EdgeId::from_raw(i))
     }
     pub fn face_ids(&self) -> impl Iterator<Item = FaceId> + '_ {
-        self.faces.iter().map(|(i, _)| FaceId(i))
+        self.faces.iter().map(|(i, _)| FaceId::from_raw(i))
     }
 
     // ---- internal accessors (panic on dead ids: callers check first) ----
 
     #[inline]
     pub(in crate::kernel) fn vert(&self, v: VertId) -> &Vert {
-        self.verts.get(v.0).expect("dead vertex id")
+        self.verts.get(v.raw()).expect("dead vertex id")
     }
     #[inline]
     pub(in crate::kernel) fn edge(&self, e: EdgeId) -> &Edge {
-        self.edges.get(e.0).expect("dead edge id")
+        self.edges.get(e.raw()).expect("dead edge id")
     }
     #[inline]
     pub(in crate::kernel) fn lp(&self, l: LoopId) -> &Loop {
-        self.loops.get(l.0).expect("dead loop id")
+        self.loops.get(l.raw()).expect("dead loop id")
     }
     #[inline]
     pub(in crate::kernel) fn face(&self, f: FaceId) -> &Face {
-        self.faces.get(f.0).expect("dead face id")
+        self.faces.get(f.raw()).expect("dead face id")
     }
 
     // ---- geometry ----
@@ -164,7 +176,10 @@ impl Mesh {
     /// normals are refreshed by [`Mesh::refresh_normals`].
     #[inline]
     pub fn set_position(&mut self, v: VertId, position: DVec3) {
-        self.verts.get_mut(v.0).expect("dead vertex id").position = position;
+        self.verts
+            .get_mut(v.raw())
+            .expect("dead vertex id")
+            .position = position;
     }
 
     /// Stored unit normal of a face (Newell normal at creation or last refresh;
@@ -176,7 +191,7 @@ impl Mesh {
     /// Recomputes the stored normal of `f` from its current vertex positions.
     pub fn refresh_normal(&mut self, f: FaceId) {
         let normal = self.compute_face_normal(f);
-        self.faces.get_mut(f.0).expect("dead face id").normal = normal;
+        self.faces.get_mut(f.raw()).expect("dead face id").normal = normal;
     }
 
     /// Room for this many more elements of each kind, reserved once (an
@@ -217,35 +232,18 @@ impl Mesh {
 
     /// Unit Newell normal from current positions; zero when degenerate.
     pub fn compute_face_normal(&self, f: FaceId) -> DVec3 {
-        // Every Euler operator that makes or reshapes a face calls this:
-        // triangles and quads (nearly all) take the unrolled computation,
-        // other small faces gather their corners on the stack.
-        const SMALL: usize = 8;
+        // Every Euler operator that reshapes a face calls this (a new
+        // face takes its ring's: `ring_normal`): small faces (nearly all)
+        // gather their corners on the stack.
         let face = self.face(f);
-        let corner = |l: LoopId| self.position(self.lp(l).vert);
-        let normal = match face.len {
-            3 => {
-                let (a, b) = (face.first_loop, self.lp(face.first_loop).next);
-                let c = self.lp(b).next;
-                polygon::unit_normal_of(&[corner(a), corner(b), corner(c)])
+        if face.len as usize <= SMALL_FACE {
+            let mut points = [DVec3::ZERO; SMALL_FACE];
+            for (point, v) in points.iter_mut().zip(self.face_verts(f)) {
+                *point = self.position(v);
             }
-            4 => {
-                let (a, b) = (face.first_loop, self.lp(face.first_loop).next);
-                let (c, d) = (self.lp(b).next, self.lp(self.lp(b).next).next);
-                polygon::unit_normal_of(&[corner(a), corner(b), corner(c), corner(d)])
-            }
-            len if len as usize <= SMALL => {
-                let mut points = [DVec3::ZERO; SMALL];
-                let mut n = 0;
-                for v in self.face_verts(f) {
-                    points[n] = self.position(v);
-                    n += 1;
-                }
-                polygon::unit_normal(&points[..n])
-            }
-            _ => polygon::unit_normal(&self.face_positions(f)),
-        };
-        normal.unwrap_or(DVec3::ZERO)
+            return normal_of(&points[..face.len as usize]);
+        }
+        normal_of(&self.face_positions(f))
     }
 
     pub fn face_positions(&self, f: FaceId) -> Vec<DVec3> {
@@ -511,6 +509,21 @@ impl Mesh {
     }
 }
 
+/// Faces up to this many corners gather their points on the stack.
+pub(in crate::kernel) const SMALL_FACE: usize = 8;
+
+/// The unit normal (Newell's, zero when degenerate) of a face's corners in
+/// order: triangles and quads (nearly all faces) unrolled.
+#[inline]
+pub(in crate::kernel) fn normal_of(points: &[DVec3]) -> DVec3 {
+    let normal = match points {
+        [a, b, c] => polygon::unit_normal_of(&[*a, *b, *c]),
+        [a, b, c, d] => polygon::unit_normal_of(&[*a, *b, *c, *d]),
+        _ => polygon::unit_normal(points),
+    };
+    normal.unwrap_or(DVec3::ZERO)
+}
+
 /// Iterator over the disk cycle of a vertex.
 pub struct DiskIter<'a> {
     mesh: &'a Mesh,
@@ -568,5 +581,44 @@ impl Iterator for FaceLoopIter<'_> {
 
     fn size_hint(&self) -> (usize, Option<usize>) {
         (self.remaining as usize, Some(self.remaining as usize))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What a million-face model costs is these sizes times its counts:
+    /// ids keep a niche (`NonZeroU32`), so an arena slot (`Option` of a
+    /// record) and an optional id cost no tag.
+    #[test]
+    fn records_stay_small() {
+        use std::mem::size_of;
+        assert_eq!(size_of::<Option<EdgeId>>(), 4);
+        assert_eq!(size_of::<Option<Vert>>(), 32);
+        assert_eq!(size_of::<Option<Edge>>(), 28);
+        assert_eq!(size_of::<Option<Loop>>(), 28);
+        assert_eq!(size_of::<Option<Face>>(), 32);
+    }
+
+    #[test]
+    fn a_new_face_takes_the_normal_its_face_computes() {
+        let mut m = Mesh::new();
+        let ring: Vec<VertId> = [
+            DVec3::new(0.0, 0.0, 0.1),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.3, 1.1, 0.2),
+            DVec3::new(0.1, 0.9, 0.0),
+            DVec3::new(-0.4, 0.5, 0.3),
+        ]
+        .map(|p| m.make_vert(p))
+        .to_vec();
+        for n in 3..=5 {
+            let f = m.make_face(&ring[..n]).unwrap();
+            assert_eq!(
+                m.face_normal(f).to_array().map(f64::to_bits),
+                m.compute_face_normal(f).to_array().map(f64::to_bits)
+            );
+        }
     }
 }

@@ -69,7 +69,7 @@ impl Mesh {
     fn validate_edges(&self) -> Result<(), ValidationError> {
         let mut pairs = FxHashSet::default();
         for (i, edge) in self.edges.iter() {
-            let e = EdgeId(i);
+            let e = EdgeId::from_raw(i);
             let [a, b] = edge.verts;
             ensure!(self.contains_vert(a), "{e} refers to dead vertex {a}");
             ensure!(self.contains_vert(b), "{e} refers to dead vertex {b}");
@@ -91,7 +91,7 @@ impl Mesh {
                 );
             }
             if let Some(l) = edge.first_loop {
-                ensure!(self.loops.contains(l.0), "{e} refers to dead loop {l}");
+                ensure!(self.loops.contains(l.raw()), "{e} refers to dead loop {l}");
             }
         }
         Ok(())
@@ -100,7 +100,7 @@ impl Mesh {
     fn validate_disks(&self) -> Result<(), ValidationError> {
         let mut walked = 0usize;
         for (i, vert) in self.verts.iter() {
-            let v = VertId(i);
+            let v = VertId::from_raw(i);
             ensure!(vert.position.is_finite(), "{v} has a non-finite position");
             let Some(start) = vert.edge else { continue };
             ensure!(self.contains_edge(start), "{v} refers to dead edge {start}");
@@ -144,7 +144,7 @@ impl Mesh {
     fn validate_radials(&self) -> Result<(), ValidationError> {
         let mut walked = 0usize;
         for (i, edge) in self.edges.iter() {
-            let e = EdgeId(i);
+            let e = EdgeId::from_raw(i);
             let Some(start) = edge.first_loop else {
                 continue;
             };
@@ -163,7 +163,7 @@ impl Mesh {
                     lp.vert
                 );
                 ensure!(
-                    self.loops.contains(lp.radial_next.0),
+                    self.loops.contains(lp.radial_next.raw()),
                     "{l} radial link to dead {}",
                     lp.radial_next
                 );
@@ -195,10 +195,10 @@ impl Mesh {
         let mut walked = 0usize;
         let mut seen: Vec<VertId> = Vec::new();
         for (i, face) in self.faces.iter() {
-            let f = FaceId(i);
+            let f = FaceId::from_raw(i);
             ensure!(face.len >= 3, "{f} has {} corners", face.len);
             ensure!(
-                self.loops.contains(face.first_loop.0),
+                self.loops.contains(face.first_loop.raw()),
                 "{f} refers to dead loop {}",
                 face.first_loop
             );
@@ -222,7 +222,7 @@ impl Mesh {
                     lp.edge
                 );
                 ensure!(
-                    self.loops.contains(lp.next.0),
+                    self.loops.contains(lp.next.raw()),
                     "{l} links to dead loop {}",
                     lp.next
                 );
@@ -264,7 +264,7 @@ impl Mesh {
             ensure!(
                 self.contains_face(lp.face),
                 "{} belongs to dead face {}",
-                LoopId(i),
+                LoopId::from_raw(i),
                 lp.face
             );
         }

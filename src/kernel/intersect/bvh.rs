@@ -407,7 +407,7 @@ impl IntersectionIndex {
         push_ring(
             ring,
             &none,
-            Element::Face(FaceId(u32::MAX)),
+            Element::Face(FaceId::from_raw(u32::MAX - 1)),
             &mut tris,
             &mut items,
         );
@@ -455,7 +455,7 @@ impl IntersectionIndex {
         push_ring(
             ring,
             &none,
-            Element::Face(FaceId(u32::MAX)),
+            Element::Face(FaceId::from_raw(u32::MAX - 1)),
             &mut tris,
             &mut items,
         );
@@ -521,7 +521,7 @@ fn attach(query: &Primitive, stored: &Primitive, ignore_verts: &[VertId]) -> Pri
         }
         let n = q.len as usize;
         if let Some(k) = (0..n).find(|&k| q.verts[k] == NO_VERT && q.points[k] == p) {
-            q.verts[k] = v.0;
+            q.verts[k] = v.raw();
         }
     }
     q

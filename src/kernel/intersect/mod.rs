@@ -200,7 +200,7 @@ impl Primitive {
     pub fn verts(&self) -> impl Iterator<Item = Option<VertId>> + '_ {
         self.verts[..self.len as usize]
             .iter()
-            .map(|&v| (v != NO_VERT).then_some(VertId(v)))
+            .map(|&v| (v != NO_VERT).then(|| VertId::from_raw(v)))
     }
 
     pub fn is_segment(&self) -> bool {
@@ -253,7 +253,7 @@ impl Primitive {
 const NO_VERT: u32 = u32::MAX;
 
 fn id(v: Option<VertId>) -> u32 {
-    v.map_or(NO_VERT, |v| v.0)
+    v.map_or(NO_VERT, |v| v.raw())
 }
 
 /// Whether two primitives intersect, excusing contact on shared vertices and

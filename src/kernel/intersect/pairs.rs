@@ -261,7 +261,7 @@ pub(crate) trait FaceRings: Sync {
 
 impl FaceRings for Mesh {
     fn ring(&self, f: FaceId, out: &mut Vec<u32>) {
-        out.extend(self.face_verts(f).map(|v| v.0));
+        out.extend(self.face_verts(f).map(|v| v.raw()));
     }
 }
 
@@ -297,7 +297,9 @@ pub(crate) fn indexed_soup(mesh: &IndexedMesh, threads: usize) -> Soup {
     let points = (0..mesh.positions.len() as u32)
         .map(|i| mesh.position(i))
         .collect();
-    let faces: Vec<FaceId> = (0..mesh.polygon_count() as u32).map(FaceId).collect();
+    let faces: Vec<FaceId> = (0..mesh.polygon_count() as u32)
+        .map(FaceId::from_raw)
+        .collect();
     certified(face_soup(mesh, points, &faces, threads), threads)
 }
 
@@ -389,7 +391,7 @@ fn with_wires(soup: Soup, mesh: &Mesh, wires: WireThickness, threads: usize) -> 
         let t = wires.of(mesh, e);
         thickness.push(if t.is_finite() && t > 0.0 { t } else { 0.0 });
         flats.push(Flat {
-            pt: [a.0, b.0, b.0],
+            pt: [a.raw(), b.raw(), b.raw()],
             len: 2,
             boundary: 1,
         });

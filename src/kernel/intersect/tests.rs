@@ -10,7 +10,7 @@ fn p(x: f64, y: f64, z: f64) -> DVec3 {
 }
 
 fn v(i: u32) -> Option<VertId> {
-    Some(VertId(i))
+    Some(VertId::from_raw(i))
 }
 
 // ---- segment–segment ----
@@ -716,7 +716,9 @@ fn large_meshes_on_several_threads() {
     assert_eq!(self_intersections(&m), faces);
     // Each crossing pair has one face of each sphere.
     let first = m.face_count() as u32 / 2;
-    assert!(faces.iter().all(|&(a, b)| a.0 < first && b.0 >= first));
+    assert!(faces
+        .iter()
+        .all(|&(a, b)| a.raw() < first && b.raw() >= first));
 }
 
 #[test]
@@ -866,12 +868,12 @@ fn soup_strategy() -> impl Strategy<Value = (Vec<Item>, Vec<Item>)> {
                 .enumerate()
                 .filter_map(|(k, (i, j, l, kind, flags))| {
                     let (i, j, l) = (i % n, j % n, l % n);
-                    let id = |x: usize| Some(VertId(x as u32));
+                    let id = |x: usize| Some(VertId::from_raw(x as u32));
                     if kind == 0 {
                         (i != j).then(|| Item {
                             prim: Primitive::segment([pool[i], pool[j]], [id(i), id(j)]),
                             thickness: f64::from(flags % 3) * 0.25,
-                            owner: Element::Edge(EdgeId(k as u32)),
+                            owner: Element::Edge(EdgeId::from_raw(k as u32)),
                             epoch: 0,
                         })
                     } else {
@@ -882,7 +884,7 @@ fn soup_strategy() -> impl Strategy<Value = (Vec<Item>, Vec<Item>)> {
                                 [flags & 1 != 0, flags & 2 != 0, flags & 4 != 0],
                             ),
                             thickness: 0.0,
-                            owner: Element::Face(FaceId(k as u32)),
+                            owner: Element::Face(FaceId::from_raw(k as u32)),
                             epoch: 0,
                         })
                     }

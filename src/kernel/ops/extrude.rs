@@ -613,7 +613,7 @@ pub(crate) mod tests {
     fn extrude_region_on_cube_top_gives_a_taller_closed_box() {
         for offset in [ExtrudeOffset::Vector(DVec3::Z), ExtrudeOffset::Normal(1.0)] {
             let mut m = cube();
-            let top = FaceId(1);
+            let top = FaceId::from_raw(1);
             let r = extrude_face_region(&mut m, &[top], false, offset).unwrap();
             m.validate().unwrap();
             assert_eq!(counts(&m), (12, 20, 10));
@@ -639,7 +639,7 @@ pub(crate) mod tests {
         assert_eq!(counts(&m), (17, 28, 12));
         assert_eq!((r.verts.len(), r.edges.len(), r.faces.len()), (9, 20, 12));
         assert!(
-            !m.contains_vert(VertId(4)),
+            !m.contains_vert(VertId::from_raw(4)),
             "the interior centre is removed"
         );
         assert!(consistently_wound(&m));
@@ -712,7 +712,9 @@ pub(crate) mod tests {
         let ring = |f: FaceId| m.face_verts(f).collect::<Vec<_>>();
         assert!(ring(tops[0]).iter().all(|v| !ring(tops[1]).contains(v)));
         // The shared base edge now carries the two facing walls, one per prism.
-        let shared = m.find_edge(VertId(1), VertId(4)).unwrap();
+        let shared = m
+            .find_edge(VertId::from_raw(1), VertId::from_raw(4))
+            .unwrap();
         assert_eq!(m.edge_face_count(shared), 2);
         assert!(consistently_wound(&m));
         for &v in &r.verts {
@@ -730,9 +732,11 @@ pub(crate) mod tests {
     #[test]
     fn extrude_edges_winds_consistently_with_the_neighbour() {
         let mut m = grid(1, 1, 1.0);
-        let f = FaceId(0);
+        let f = FaceId::from_raw(0);
         // The left edge, run (0, 1) → (0, 0) by the face (v2 → v0).
-        let left = m.find_edge(VertId(2), VertId(0)).unwrap();
+        let left = m
+            .find_edge(VertId::from_raw(2), VertId::from_raw(0))
+            .unwrap();
         let r = extrude_edges(&mut m, &[left], ExtrudeOffset::Vector(-DVec3::X)).unwrap();
         m.validate().unwrap();
         assert_eq!((r.verts.len(), r.edges.len(), r.faces.len()), (2, 3, 1));
@@ -740,12 +744,16 @@ pub(crate) mod tests {
         assert!(consistently_wound(&m));
         assert!(close(m.face_normal(quad), m.face_normal(f)));
         let ring: Vec<VertId> = m.face_verts(quad).collect();
-        assert_eq!(&ring[..2], &[VertId(0), VertId(2)]);
+        assert_eq!(&ring[..2], &[VertId::from_raw(0), VertId::from_raw(2)]);
 
         // Two edges meeting at a corner share the corner's copy.
         let mut m = grid(1, 1, 1.0);
-        let bottom = m.find_edge(VertId(0), VertId(1)).unwrap();
-        let right = m.find_edge(VertId(1), VertId(3)).unwrap();
+        let bottom = m
+            .find_edge(VertId::from_raw(0), VertId::from_raw(1))
+            .unwrap();
+        let right = m
+            .find_edge(VertId::from_raw(1), VertId::from_raw(3))
+            .unwrap();
         let r = extrude_edges(&mut m, &[right, bottom], ExtrudeOffset::Normal(1.0)).unwrap();
         m.validate().unwrap();
         assert_eq!((r.verts.len(), r.edges.len(), r.faces.len()), (3, 5, 2));
@@ -771,7 +779,7 @@ pub(crate) mod tests {
         let lone = m.make_vert(DVec3::new(5.0, 0.0, 0.0));
         let r = extrude_verts(
             &mut m,
-            &[VertId(7), lone],
+            &[VertId::from_raw(7), lone],
             ExtrudeOffset::Normal(3f64.sqrt()),
         )
         .unwrap();
@@ -782,7 +790,7 @@ pub(crate) mod tests {
             close(m.position(r.verts[1]), m.position(lone)),
             "no faces, no move"
         );
-        assert_eq!(m.edge_verts(r.edges[0]), [VertId(7), r.verts[0]]);
+        assert_eq!(m.edge_verts(r.edges[0]), [VertId::from_raw(7), r.verts[0]]);
     }
 
     #[test]
@@ -790,7 +798,7 @@ pub(crate) mod tests {
         // Top (+z) and front (−y) of the cube: the shared edge's ends move
         // diagonally so both copies stay flat, 0.5 out of their planes.
         let mut m = cube();
-        let (top, front) = (FaceId(1), FaceId(2));
+        let (top, front) = (FaceId::from_raw(1), FaceId::from_raw(2));
         let r =
             extrude_face_region(&mut m, &[top, front], false, ExtrudeOffset::Normal(0.5)).unwrap();
         m.validate().unwrap();
@@ -825,14 +833,22 @@ pub(crate) mod tests {
             .unwrap();
         m.set_attr("mat", Domain::Face, 0, AttrValue::Int(7));
         m.set_attr("r", Domain::Vert, 3, AttrValue::Scalar(0.5));
-        let bottom = m.find_edge(VertId(0), VertId(1)).unwrap();
+        let bottom = m
+            .find_edge(VertId::from_raw(0), VertId::from_raw(1))
+            .unwrap();
         m.set_attr(
             "crease",
             Domain::Edge,
             bottom.index(),
             AttrValue::Scalar(1.0),
         );
-        let r = extrude_faces(&mut m, &[FaceId(0)], false, ExtrudeOffset::Normal(1.0)).unwrap();
+        let r = extrude_faces(
+            &mut m,
+            &[FaceId::from_raw(0)],
+            false,
+            ExtrudeOffset::Normal(1.0),
+        )
+        .unwrap();
         m.validate().unwrap();
         for &f in &r.faces {
             assert_eq!(
@@ -840,7 +856,7 @@ pub(crate) mod tests {
                 Some(AttrValue::Int(7))
             );
         }
-        let above_3 = m.position(VertId(3)) + DVec3::Z;
+        let above_3 = m.position(VertId::from_raw(3)) + DVec3::Z;
         let top_of_3 = *r.verts.iter().find(|&&v| m.position(v) == above_3).unwrap();
         assert_eq!(
             m.attr("r", Domain::Vert, top_of_3.index()),
@@ -860,13 +876,13 @@ pub(crate) mod tests {
         let before = counts(&m);
         let nan = ExtrudeOffset::Vector(DVec3::new(f64::NAN, 0.0, 0.0));
         assert!(matches!(
-            extrude_faces(&mut m, &[FaceId(0)], false, nan),
+            extrude_faces(&mut m, &[FaceId::from_raw(0)], false, nan),
             Err(OpError::Parameter { name: "offset", .. })
         ));
         assert!(matches!(
             extrude_face_region(
                 &mut m,
-                &[FaceId(0)],
+                &[FaceId::from_raw(0)],
                 false,
                 ExtrudeOffset::Normal(f64::INFINITY)
             ),
@@ -875,20 +891,25 @@ pub(crate) mod tests {
         assert!(matches!(
             extrude_verts(
                 &mut m,
-                &[VertId(0), far],
+                &[VertId::from_raw(0), far],
                 ExtrudeOffset::Vector(DVec3::X * f64::MAX)
             ),
             Err(OpError::Parameter { .. })
         ));
         assert_eq!(
-            extrude_faces(&mut m, &[FaceId(1), FaceId(40)], true, ExtrudeOffset::None),
+            extrude_faces(
+                &mut m,
+                &[FaceId::from_raw(1), FaceId::from_raw(40)],
+                true,
+                ExtrudeOffset::None
+            ),
             Err(OpError::Kernel(KernelError::Dead {
                 domain: Domain::Face,
                 index: 40
             }))
         );
         assert!(matches!(
-            extrude_edges(&mut m, &[EdgeId(99)], ExtrudeOffset::None),
+            extrude_edges(&mut m, &[EdgeId::from_raw(99)], ExtrudeOffset::None),
             Err(OpError::Kernel(KernelError::Dead { .. }))
         ));
         assert_eq!(counts(&m), before);
@@ -909,8 +930,17 @@ pub(crate) mod tests {
             (r, positions)
         };
         assert_eq!(
-            run(&[FaceId(0), FaceId(1), FaceId(2)]),
-            run(&[FaceId(2), FaceId(0), FaceId(1), FaceId(0)])
+            run(&[
+                FaceId::from_raw(0),
+                FaceId::from_raw(1),
+                FaceId::from_raw(2)
+            ]),
+            run(&[
+                FaceId::from_raw(2),
+                FaceId::from_raw(0),
+                FaceId::from_raw(1),
+                FaceId::from_raw(0)
+            ])
         );
     }
 }

@@ -459,7 +459,7 @@ mod tests {
             Err(OpError::Kernel(KernelError::TooFewVertices(2)))
         );
         assert!(matches!(
-            make_face_from_edges(&mut m, &[t1[0], t1[1], EdgeId(50)]),
+            make_face_from_edges(&mut m, &[t1[0], t1[1], EdgeId::from_raw(50)]),
             Err(OpError::Kernel(KernelError::Dead { .. }))
         ));
         assert_eq!(m.face_count(), 0);
@@ -601,19 +601,19 @@ mod tests {
     fn reverse_faces_flips_and_checks_first() {
         let mut m = grid(2, 1, 1.0);
         assert_eq!(
-            reverse_faces(&mut m, &[FaceId(1), FaceId(5)]),
+            reverse_faces(&mut m, &[FaceId::from_raw(1), FaceId::from_raw(5)]),
             Err(OpError::Kernel(KernelError::Dead {
                 domain: Domain::Face,
                 index: 5
             }))
         );
         assert_eq!(
-            m.face_normal(FaceId(1)),
+            m.face_normal(FaceId::from_raw(1)),
             DVec3::Z,
             "nothing flipped on error"
         );
         assert_eq!(
-            reverse_faces(&mut m, &[FaceId(1), FaceId(0)]),
+            reverse_faces(&mut m, &[FaceId::from_raw(1), FaceId::from_raw(0)]),
             Ok(Selection::new())
         );
         m.validate().unwrap();
@@ -625,11 +625,26 @@ mod tests {
     fn recompute_normals_fixes_a_cube_with_three_flipped_faces() {
         let mut m = cube();
         let all: Vec<FaceId> = m.face_ids().collect();
-        reverse_faces(&mut m, &[FaceId(0), FaceId(3), FaceId(5)]).unwrap();
+        reverse_faces(
+            &mut m,
+            &[
+                FaceId::from_raw(0),
+                FaceId::from_raw(3),
+                FaceId::from_raw(5),
+            ],
+        )
+        .unwrap();
         assert!(!consistently_wound(&m));
         let r = recompute_normals(&mut m, &all, true).unwrap();
         m.validate().unwrap();
-        assert_eq!(r.faces, vec![FaceId(0), FaceId(3), FaceId(5)]);
+        assert_eq!(
+            r.faces,
+            vec![
+                FaceId::from_raw(0),
+                FaceId::from_raw(3),
+                FaceId::from_raw(5)
+            ]
+        );
         assert!(closed_and_consistent(&m));
         assert!((signed_volume(&m) - 8.0).abs() < 1e-12);
         for f in m.face_ids() {
@@ -661,20 +676,32 @@ mod tests {
 
         // An open strip takes the winding of its lowest face.
         let mut m = grid(3, 1, 1.0);
-        reverse_faces(&mut m, &[FaceId(0)]).unwrap();
-        let r = recompute_normals(&mut m, &[FaceId(2), FaceId(1), FaceId(0)], true).unwrap();
+        reverse_faces(&mut m, &[FaceId::from_raw(0)]).unwrap();
+        let r = recompute_normals(
+            &mut m,
+            &[
+                FaceId::from_raw(2),
+                FaceId::from_raw(1),
+                FaceId::from_raw(0),
+            ],
+            true,
+        )
+        .unwrap();
         m.validate().unwrap();
-        assert_eq!(r.faces, vec![FaceId(1), FaceId(2)]);
+        assert_eq!(r.faces, vec![FaceId::from_raw(1), FaceId::from_raw(2)]);
         assert!(m.face_ids().all(|f| m.face_normal(f) == -DVec3::Z));
 
         // Without `outside`, only stale normals are refreshed.
         let mut m = grid(1, 1, 1.0);
-        m.set_position(VertId(3), DVec3::new(0.5, 0.5, 1.0));
-        let stale = m.face_normal(FaceId(0));
-        let r = recompute_normals(&mut m, &[FaceId(0)], false).unwrap();
+        m.set_position(VertId::from_raw(3), DVec3::new(0.5, 0.5, 1.0));
+        let stale = m.face_normal(FaceId::from_raw(0));
+        let r = recompute_normals(&mut m, &[FaceId::from_raw(0)], false).unwrap();
         assert!(r.is_empty());
-        assert_ne!(m.face_normal(FaceId(0)), stale);
-        assert_eq!(m.face_normal(FaceId(0)), m.compute_face_normal(FaceId(0)));
+        assert_ne!(m.face_normal(FaceId::from_raw(0)), stale);
+        assert_eq!(
+            m.face_normal(FaceId::from_raw(0)),
+            m.compute_face_normal(FaceId::from_raw(0))
+        );
     }
 
     /// Random operator sequences (every operator of the four modules, on

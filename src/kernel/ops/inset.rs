@@ -539,7 +539,7 @@ mod tests {
         let mut m = grid(1, 1, 1.0);
         m.add_layer("mat", Domain::Face, AttrValue::Int(0)).unwrap();
         m.set_attr("mat", Domain::Face, 0, AttrValue::Int(3));
-        let r = inset_faces(&mut m, &[FaceId(0)], 0.1, 0.0).unwrap();
+        let r = inset_faces(&mut m, &[FaceId::from_raw(0)], 0.1, 0.0).unwrap();
         m.validate().unwrap();
         assert_eq!(counts(&m), (8, 12, 5));
         assert_eq!((r.verts.len(), r.edges.len(), r.faces.len()), (4, 8, 5));
@@ -566,17 +566,17 @@ mod tests {
         for v in 0..4 {
             // Spokes run outer → inner.
             let spoke = m
-                .vert_edges(VertId(v))
+                .vert_edges(VertId::from_raw(v))
                 .find(|&e| r.edges.contains(&e))
                 .unwrap();
-            assert_eq!(m.edge_verts(spoke)[0], VertId(v));
+            assert_eq!(m.edge_verts(spoke)[0], VertId::from_raw(v));
         }
     }
 
     #[test]
     fn inset_depth_moves_the_inner_face_along_its_normal() {
         let mut m = cube();
-        let top = FaceId(1);
+        let top = FaceId::from_raw(1);
         let r = inset_faces(&mut m, &[top], 0.5, -0.25).unwrap();
         m.validate().unwrap();
         assert!(closed_and_consistent(&m));
@@ -593,7 +593,7 @@ mod tests {
     fn inset_clamps_thickness_at_the_first_edge_event() {
         // A square inset past half its side collapses to its centre.
         let mut m = grid(1, 1, 1.0);
-        let r = inset_faces(&mut m, &[FaceId(0)], 0.7, 0.0).unwrap();
+        let r = inset_faces(&mut m, &[FaceId::from_raw(0)], 0.7, 0.0).unwrap();
         m.validate().unwrap();
         for &v in &r.verts {
             assert!(m.position(v).length() < 1e-12);
@@ -605,7 +605,7 @@ mod tests {
             .map(|&(x, y)| m.make_vert(DVec3::new(x, y, 0.0)))
             .collect();
         m.make_face(&v).unwrap();
-        let r = inset_faces(&mut m, &[FaceId(0)], 2.0, 0.0).unwrap();
+        let r = inset_faces(&mut m, &[FaceId::from_raw(0)], 2.0, 0.0).unwrap();
         m.validate().unwrap();
         for &v in &r.verts {
             let p = m.position(v);
@@ -622,7 +622,7 @@ mod tests {
             .map(|&(x, y)| m.make_vert(DVec3::new(x, y, 0.0)))
             .collect();
         m.make_face(&v).unwrap();
-        let r = inset_faces(&mut m, &[FaceId(0)], 0.5, 0.0).unwrap();
+        let r = inset_faces(&mut m, &[FaceId::from_raw(0)], 0.5, 0.0).unwrap();
         m.validate().unwrap();
         let incentre = DVec3::new(1.0, 1.0, 0.0);
         for (&outer, &inner) in v.iter().zip(&r.verts) {
@@ -657,7 +657,13 @@ mod tests {
     #[test]
     fn inset_neighbouring_faces_individually() {
         let mut m = grid(3, 3, 1.0);
-        let r = inset_faces(&mut m, &[FaceId(4), FaceId(5)], 0.2, 0.0).unwrap();
+        let r = inset_faces(
+            &mut m,
+            &[FaceId::from_raw(4), FaceId::from_raw(5)],
+            0.2,
+            0.0,
+        )
+        .unwrap();
         m.validate().unwrap();
         assert_eq!(m.face_count(), 9 - 2 + 10);
         assert_eq!(inner_faces(&m, &r).len(), 2);
@@ -672,7 +678,7 @@ mod tests {
     fn inset_region_on_a_2x2_grid_keeps_the_interior_vertex() {
         let mut m = grid(2, 2, 1.0);
         let faces: Vec<FaceId> = m.face_ids().collect();
-        let centre = VertId(4);
+        let centre = VertId::from_raw(4);
         let r = inset_region(&mut m, &faces, 0.1, 0.0).unwrap();
         m.validate().unwrap();
         assert_eq!(counts(&m), (17, 28, 12));
@@ -774,7 +780,13 @@ mod tests {
     fn inset_region_across_a_fold_stays_closed() {
         // Top and front of the cube: the fold edge is interior to the region.
         let mut m = cube();
-        let r = inset_region(&mut m, &[FaceId(1), FaceId(2)], 0.25, 0.0).unwrap();
+        let r = inset_region(
+            &mut m,
+            &[FaceId::from_raw(1), FaceId::from_raw(2)],
+            0.25,
+            0.0,
+        )
+        .unwrap();
         m.validate().unwrap();
         assert_eq!(counts(&m), (14, 24, 12));
         assert!(closed_and_consistent(&m));
@@ -796,22 +808,27 @@ mod tests {
         let mut m = grid(1, 1, 1.0);
         let before = counts(&m);
         assert!(matches!(
-            inset_faces(&mut m, &[FaceId(0)], -0.1, 0.0),
+            inset_faces(&mut m, &[FaceId::from_raw(0)], -0.1, 0.0),
             Err(OpError::Parameter {
                 name: "thickness",
                 ..
             })
         ));
         assert!(matches!(
-            inset_region(&mut m, &[FaceId(0)], 0.1, f64::NAN),
+            inset_region(&mut m, &[FaceId::from_raw(0)], 0.1, f64::NAN),
             Err(OpError::Parameter { name: "depth", .. })
         ));
         assert!(matches!(
-            inset_faces(&mut m, &[FaceId(0)], f64::INFINITY, 0.0),
+            inset_faces(&mut m, &[FaceId::from_raw(0)], f64::INFINITY, 0.0),
             Err(OpError::Parameter { .. })
         ));
         assert_eq!(
-            inset_region(&mut m, &[FaceId(0), FaceId(3)], 0.1, 0.0),
+            inset_region(
+                &mut m,
+                &[FaceId::from_raw(0), FaceId::from_raw(3)],
+                0.1,
+                0.0
+            ),
             Err(OpError::Kernel(KernelError::Dead {
                 domain: Domain::Face,
                 index: 3

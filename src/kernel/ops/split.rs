@@ -119,24 +119,32 @@ mod tests {
     #[test]
     fn split_edges_counts_and_positions() {
         let mut m = grid(1, 1, 1.0);
-        let bottom = m.find_edge(VertId(0), VertId(1)).unwrap();
+        let bottom = m
+            .find_edge(VertId::from_raw(0), VertId::from_raw(1))
+            .unwrap();
         let r = split_edges(&mut m, &[bottom], 3).unwrap();
         m.validate().unwrap();
         assert_eq!((r.verts.len(), r.edges.len(), r.faces.len()), (3, 3, 0));
         assert_eq!((m.vert_count(), m.edge_count(), m.face_count()), (7, 7, 1));
-        assert_eq!(m.face_len(FaceId(0)), 7);
+        assert_eq!(m.face_len(FaceId::from_raw(0)), 7);
         for (k, &v) in r.verts.iter().enumerate() {
             let x = -0.5 + 0.25 * (k + 1) as f64;
             assert_eq!(m.position(v), DVec3::new(x, -0.5, 0.0));
         }
         // The face walks the new vertices in order, ids increasing.
-        let ring: Vec<VertId> = m.face_verts(FaceId(0)).collect();
+        let ring: Vec<VertId> = m.face_verts(FaceId::from_raw(0)).collect();
         assert_eq!(
             &ring[..5],
-            &[VertId(0), r.verts[0], r.verts[1], r.verts[2], VertId(1)]
+            &[
+                VertId::from_raw(0),
+                r.verts[0],
+                r.verts[1],
+                r.verts[2],
+                VertId::from_raw(1)
+            ]
         );
-        assert_eq!(m.edge_verts(bottom), [VertId(0), r.verts[0]]);
-        assert!((m.face_area(FaceId(0)) - 1.0).abs() < 1e-15);
+        assert_eq!(m.edge_verts(bottom), [VertId::from_raw(0), r.verts[0]]);
+        assert!((m.face_area(FaceId::from_raw(0)) - 1.0).abs() < 1e-15);
 
         // Every edge of the square cut once: an octagon outline.
         let mut m = grid(1, 1, 1.0);
@@ -144,7 +152,7 @@ mod tests {
         let r = split_edges(&mut m, &edges, 1).unwrap();
         m.validate().unwrap();
         assert_eq!((r.verts.len(), r.edges.len()), (4, 4));
-        assert_eq!((m.edge_count(), m.face_len(FaceId(0))), (8, 8));
+        assert_eq!((m.edge_count(), m.face_len(FaceId::from_raw(0))), (8, 8));
         for &v in &r.verts {
             let p = m.position(v);
             assert_eq!(p.x.abs() + p.y.abs(), 0.5, "{p} is not an edge midpoint");
@@ -170,11 +178,19 @@ mod tests {
 
         // An edge between two faces: both gain the vertices, winding intact.
         let mut m = grid(2, 1, 1.0);
-        let shared = m.find_edge(VertId(1), VertId(4)).unwrap();
+        let shared = m
+            .find_edge(VertId::from_raw(1), VertId::from_raw(4))
+            .unwrap();
         let r = split_edges_at(&mut m, &[shared, shared], &[0.25, 0.75]).unwrap();
         m.validate().unwrap();
         assert_eq!(r.verts.len(), 2);
-        assert_eq!((m.face_len(FaceId(0)), m.face_len(FaceId(1))), (6, 6));
+        assert_eq!(
+            (
+                m.face_len(FaceId::from_raw(0)),
+                m.face_len(FaceId::from_raw(1))
+            ),
+            (6, 6)
+        );
         assert!(consistently_wound(&m));
         assert_eq!(m.edge_face_count(r.edges[0]), 2);
     }
@@ -205,7 +221,7 @@ mod tests {
             Err(OpError::Parameter { name: "cuts", .. })
         ));
         assert_eq!(
-            split_edges(&mut m, &[edges[0], EdgeId(77)], 2),
+            split_edges(&mut m, &[edges[0], EdgeId::from_raw(77)], 2),
             Err(OpError::Kernel(KernelError::Dead {
                 domain: Domain::Edge,
                 index: 77
