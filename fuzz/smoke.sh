@@ -4,7 +4,10 @@
 # RUSTC_BOOTSTRAP=1, no sanitizer: see README.md), then, for every target:
 #   1. replay: every committed input of the target, regressions/ and
 #      seeds/, runs once (libFuzzer -runs=0); any crash fails the smoke;
-#   2. fuzz: SMOKE_SECONDS (default 20) of fuzzing from those inputs.
+#   2. fuzz: SMOKE_SECONDS (default 20) of fuzzing from those inputs,
+#      with a fixed random seed (SMOKE_SEED, default 1), so that a run on
+#      the same commit explores the same inputs in the same order (how far
+#      it gets in the time still depends on the machine).
 # Targets run side by side, one a core (libFuzzer uses one each).
 # The committed inputs are read only: libFuzzer writes new inputs to the
 # first folder it is given only, here a scratch corpus under target/, and
@@ -13,7 +16,7 @@
 #   fuzz/smoke.sh                                   # every target
 #   SMOKE_SECONDS=5 fuzz/smoke.sh rules_compile error_render
 #
-# Environment: SMOKE_SECONDS; SMOKE_JOBS (targets at a time, default
+# Environment: SMOKE_SECONDS; SMOKE_SEED; SMOKE_JOBS (targets at a time, default
 # nproc); SMOKE_DIR (scratch: corpus/, artifacts/, logs/; default
 # $CARGO_TARGET_DIR/fuzz-smoke, else target/fuzz-smoke; emptied first);
 # FUZZ_TARGET_DIR (cargo target dir of the fuzz crate, default fuzz/target,
@@ -42,6 +45,7 @@ absolute() {
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=("${ALL_TARGETS[@]}")
 seconds=${SMOKE_SECONDS:-20}
+seed=${SMOKE_SEED:-1}
 nice_level=${FUZZ_NICE-19}
 target_dir=$(absolute "${FUZZ_TARGET_DIR:-$fuzz_dir/target}")
 if [ -n "${SMOKE_DIR:-}" ]; then
@@ -135,7 +139,7 @@ smoke_one() {
         log=$scratch/logs/$t-fuzz.log
         began=$SECONDS
         # shellcheck disable=SC2046,SC2086
-        if "${run[@]}" "$bins/$t" -max_total_time="$seconds" "${limits[@]}" \
+        if "${run[@]}" "$bins/$t" -max_total_time="$seconds" -seed="$seed" "${limits[@]}" \
             -print_final_stats=1 -artifact_prefix="$artifacts" $(dict_of "$t") ${FUZZ_ARGS:-} \
             "$corpus" "${inputs[@]}" >"$log" 2>&1; then
             status=ok

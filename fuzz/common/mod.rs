@@ -72,7 +72,9 @@ pub fn render(error: &RuleError) {
         plain.len()
     );
     assert!(color.len() <= bound + 256, "render(true) is {} bytes", color.len());
-    assert!(headline.len() <= own + error.location.len() + 8);
+    // The headline is `location: message`, each control character shown as
+    // its picture (U+2400..U+2421: one byte becomes three).
+    assert!(headline.len() <= 3 * own + 8);
 }
 
 /// Parses and compiles rule text as `graftal check` does (no overrides,

@@ -100,7 +100,41 @@ fn c3(p: DVec3) -> Coord3D<f64> {
 /// counter-clockwise from above). Only the sign is used.
 #[inline]
 pub(crate) fn orient3d(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> f64 {
+    let [a, b, c, d] = in_range([a, b, c, d]);
     robust::orient3d(c3(a), c3(b), c3(c), c3(d))
+}
+
+/// Coordinates up to 2^300 in magnitude go to Shewchuk's predicates as
+/// they are: orient3d multiplies three differences (each up to twice a
+/// coordinate), orient2d two, and beyond about 2^340 the products
+/// overflow. Then every adaptive stage computes with infinities and NaNs,
+/// so each call takes the slowest path and its sign means nothing (fuzzing
+/// found a 600-face PLY with coordinates near 1e308 on which `graftal
+/// info` spent seconds). Larger points are scaled by one power of two:
+/// exact, so the sign is kept, except for coordinates below 2^-774 that
+/// underflow beside them. Non-finite points are degenerate (zero).
+const ORIENT_SAFE: f64 = 2.037_035_976_334_486e90; // 2^300
+
+#[inline]
+fn in_range<const N: usize>(points: [DVec3; N]) -> [DVec3; N] {
+    let largest = points
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max);
+    if largest <= ORIENT_SAFE {
+        return points;
+    }
+    if !largest.is_finite() || points.iter().any(|p| !p.is_finite()) {
+        return [DVec3::ZERO; N];
+    }
+    let shift = libm::ilogb(largest) - 300;
+    points.map(|p| {
+        DVec3::new(
+            libm::scalbn(p.x, -shift),
+            libm::scalbn(p.y, -shift),
+            libm::scalbn(p.z, -shift),
+        )
+    })
 }
 
 /// The sign of [`orient3d`] when its floating-point filter certifies it,
@@ -208,11 +242,20 @@ fn project(p: DVec3, axis: usize) -> P2 {
 
 #[inline]
 fn orient2d(a: P2, b: P2, c: P2) -> f64 {
+    let lift = |p: P2| DVec3::new(p[0], p[1], 0.0);
+    let [a, b, c] = in_range([lift(a), lift(b), lift(c)]).map(|p| [p.x, p.y]);
     robust::orient2d(
         Coord { x: a[0], y: a[1] },
         Coord { x: b[0], y: b[1] },
         Coord { x: c[0], y: c[1] },
     )
+}
+
+/// [`orient2d`] of three points dropped onto the plane without `axis`
+/// (0 = x, 1 = y, 2 = z), as [`project`] drops them.
+#[inline]
+pub(crate) fn orient2d_dropping(a: DVec3, b: DVec3, c: DVec3, axis: usize) -> f64 {
+    orient2d(project(a, axis), project(b, axis), project(c, axis))
 }
 
 /// Signs of opposite strictness: one strictly positive, the other strictly negative.
@@ -481,4 +524,34 @@ fn triangle_triangle_distance_squared(a: [DVec3; 3], b: [DVec3; 3]) -> f64 {
                 .min(segment_triangle_distance_squared(b[i], b[(i + 1) % 3], a))
         })
         .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn huge_coordinates_keep_their_sign_and_take_the_fast_path() {
+        let (a, b, c) = (
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        );
+        let d = DVec3::new(0.25, 0.25, -1.0);
+        let small = orient3d(a, b, c, d).signum();
+        assert_ne!(small, 0.0);
+        for scale in [1e100, 1e200, 1e300, f64::MAX / 4.0] {
+            let s = |p: DVec3| p * scale;
+            assert_eq!(orient3d(s(a), s(b), s(c), s(d)).signum(), small, "{scale}");
+            // Coplanar stays exactly coplanar (the scaling is exact).
+            let e = DVec3::new(0.5, 0.25, 0.0);
+            assert_eq!(orient3d(s(a), s(b), s(c), s(e)), 0.0, "{scale}");
+            assert_eq!(
+                orient2d_dropping(s(a), s(b), s(e), 2).signum(),
+                orient2d_dropping(a, b, e, 2).signum()
+            );
+        }
+        let inf = DVec3::new(f64::INFINITY, 0.0, 0.0);
+        assert_eq!(orient3d(a, b, c, inf), 0.0);
+    }
 }

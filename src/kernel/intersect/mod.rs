@@ -105,7 +105,7 @@ use super::mesh::Mesh;
 use crate::geom::cells::{CellLists, Cells, NONE};
 use crate::geom::polygon;
 use crate::geom::predicates::{
-    self, orient3d, point_on_segment, shapes_meet, shapes_touch, Plane, Shape,
+    self, orient2d_dropping, orient3d, point_on_segment, shapes_meet, shapes_touch, Plane, Shape,
 };
 use crate::geom::IndexedMesh;
 
@@ -473,19 +473,7 @@ fn folded_onto_each_other(u: DVec3, v: DVec3, a: DVec3, b: DVec3) -> bool {
     if orient3d(u, v, a, b) != 0.0 {
         return false;
     }
-    let side = |p: DVec3, axis: usize| {
-        let pr = |q: DVec3| match axis {
-            0 => (q.y, q.z),
-            1 => (q.z, q.x),
-            _ => (q.x, q.y),
-        };
-        let (pu, pv, pp) = (pr(u), pr(v), pr(p));
-        robust::orient2d(
-            robust::Coord { x: pu.0, y: pu.1 },
-            robust::Coord { x: pv.0, y: pv.1 },
-            robust::Coord { x: pp.0, y: pp.1 },
-        )
-    };
+    let side = |p: DVec3, axis: usize| orient2d_dropping(u, v, p, axis);
     // In a projection where (u, v, a) keeps its area the plane projects one
     // to one, so the sides there are the sides in the plane.
     for axis in 0..3 {
