@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm fuzz fuzz-smoke clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender fuzz fuzz-smoke clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -63,6 +63,15 @@ contact-sheet:
 test-slurm:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal tests/slurm/run.sh
+
+## Modelling operators against Blender 3.4 (tests/blender/run.sh): each
+## tests/blender/*.py runs in `blender -b` and compares graftal's output
+## with Blender's (subdivide: the subdivision-surface modifier, OpenSubdiv).
+## Installs Blender with apt-get when missing (~1 min). Not part of
+## `make test`; CI (`.ci/run`) runs it after.
+test-blender:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal tests/blender/run.sh
 
 ## Fuzz smoke (fuzz/smoke.sh): builds the libFuzzer targets (cargo-fuzz on
 ## stable, RUSTC_BOOTSTRAP=1), replays every committed regression and seed of

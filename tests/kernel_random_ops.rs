@@ -5,6 +5,7 @@
 
 use glam::DVec3;
 
+use graftal::kernel::ops::subdivide::{self, Boundary, Scheme, Subdivision};
 use graftal::kernel::ops::{create, delete, extrude, faces, inset, merge, split, transform};
 use graftal::kernel::{AttrValue, Domain, EdgeId, FaceId, Mesh, VertId};
 
@@ -44,7 +45,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(27);
+    let choice = rng.below(28);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -209,6 +210,22 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                 mesh.reverse_edge(e).unwrap();
             }
             "reverse_edge"
+        }
+        26 => {
+            if !big {
+                let scheme = [Scheme::CatmullClark, Scheme::Simple, Scheme::Loop][rng.below(3)];
+                let options = Subdivision {
+                    scheme,
+                    levels: 1,
+                    boundary: [Boundary::KeepCorners, Boundary::Smooth][rng.below(2)],
+                    crease_angle: (rng.unit() < 0.5).then_some(30.0),
+                };
+                let region = some(rng, &faces, 4);
+                let creases: Vec<(EdgeId, f64)> =
+                    some(rng, &edges, 3).into_iter().map(|e| (e, 1.5)).collect();
+                let _ = subdivide::subdivide(mesh, &region, options, &creases);
+            }
+            "subdivide"
         }
         _ => {
             match rng.below(3) {

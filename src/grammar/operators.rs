@@ -15,12 +15,16 @@ use super::surfaces;
 use crate::kernel::ops::delete::DeleteMode;
 use crate::kernel::ops::extrude::ExtrudeOffset;
 use crate::kernel::ops::{self, Selection};
-use crate::kernel::{Domain, EdgeId, FaceId, Mesh, VertId};
+use crate::kernel::{AttrValue, Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::expr::Expr;
-use crate::rules::op_args::{Adjacency, Axis, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod, UpAxis};
+use crate::rules::op_args::{
+    Adjacency, Axis, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod, SubdivisionBoundary,
+    SubdivisionScheme, UpAxis,
+};
 use crate::rules::operators::Reads;
 use crate::rules::program::{Call, Resource, Vector};
 use crate::rules::sdf_tree::SdfForest;
+use rustc_hash::FxHashMap;
 
 /// What an operator implementation sees besides the mesh.
 pub(super) struct Context<'a> {
@@ -221,6 +225,20 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             Some(ratios) => m(m(edge_count(), ratios.len() as u64), 2),
             None => m(m(edge_count(), cuts.as_ref().map_or(1, n)), 2),
         },
+        OpArgs::Subdivide { scheme, levels, .. } => {
+            use ops::subdivide::{predict, Scheme, Subdivision};
+            let options = Subdivision {
+                scheme: match scheme {
+                    SubdivisionScheme::Loop => Scheme::Loop,
+                    _ => Scheme::CatmullClark,
+                },
+                levels: n(levels).min(u64::from(u32::MAX)) as u32,
+                boundary: ops::subdivide::Boundary::KeepCorners,
+                crease_angle: None,
+            };
+            let [v, e, f] = predict(mesh, &sel.by_domain.faces, options);
+            u64::try_from(v.saturating_add(e).saturating_add(f)).unwrap_or(u64::MAX)
+        }
         // n - 3 diagonals and n - 2 triangles for the one face removed.
         OpArgs::Triangulate => sel
             .by_domain
@@ -258,6 +276,7 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         | OpArgs::Assign
         | OpArgs::Reverse
         | OpArgs::RecomputeNormals { .. }
+        | OpArgs::Crease { .. }
         | OpArgs::Delete { .. }
         | OpArgs::DissolveEdges
         | OpArgs::Merge { .. }
@@ -518,6 +537,50 @@ pub(super) fn apply(
             }
         },
         OpArgs::Triangulate => faces::triangulate(mesh, &faces_list)?,
+        OpArgs::Subdivide {
+            scheme,
+            levels,
+            boundary,
+            crease_angle,
+        } => {
+            use ops::subdivide::{self, Boundary, Scheme, Subdivision};
+            let options = Subdivision {
+                scheme: match scheme {
+                    SubdivisionScheme::CatmullClark => Scheme::CatmullClark,
+                    SubdivisionScheme::Simple => Scheme::Simple,
+                    SubdivisionScheme::Loop => Scheme::Loop,
+                },
+                levels: ctx.count(levels, "levels")?,
+                boundary: match boundary {
+                    SubdivisionBoundary::KeepCorners => Boundary::KeepCorners,
+                    SubdivisionBoundary::Smooth => Boundary::Smooth,
+                },
+                crease_angle: crease_angle.as_ref().map(s),
+            };
+            let creases = stored_creases(mesh, &faces_list);
+            let done = subdivide::subdivide(mesh, &faces_list, options, &creases)?;
+            // What is left of each crease stays on its children (a later
+            // `subdivide` reads it); the copies `split_edge` made of the
+            // parents' values are replaced.
+            if !creases.is_empty() {
+                let left: FxHashMap<EdgeId, f64> = done.creases.iter().copied().collect();
+                for &f in &done.made.faces {
+                    for e in mesh.face_edges(f).collect::<Vec<_>>() {
+                        let value = AttrValue::Scalar(left.get(&e).copied().unwrap_or(0.0));
+                        let _ = mesh.set_attr(CREASE_LAYER, Domain::Edge, e.index(), value);
+                    }
+                }
+            }
+            done.made
+        }
+        OpArgs::Crease { sharpness } => {
+            let value = AttrValue::Scalar(s(sharpness));
+            let _ = mesh.add_layer(CREASE_LAYER, Domain::Edge, AttrValue::Scalar(0.0));
+            for &e in &edges {
+                let _ = mesh.set_attr(CREASE_LAYER, Domain::Edge, e.index(), value);
+            }
+            Selection::from_parts(Vec::new(), edges, Vec::new())
+        }
         // The step tags what it returns (`grammar::asset::tag`): the
         // selected faces, or edges.
         OpArgs::Assign => by_domain,
@@ -632,4 +695,30 @@ fn patch_cells(x: f64) -> usize {
     } else {
         1
     }
+}
+
+/// The edge layer `crease` steps write and `subdivide` reads: OpenSubdiv
+/// sharpness (levels an edge stays sharp).
+pub const CREASE_LAYER: &str = "crease";
+
+/// The creased edges of `faces`, from the crease layer (none without it).
+fn stored_creases(mesh: &Mesh, faces: &[FaceId]) -> Vec<(EdgeId, f64)> {
+    if mesh
+        .attributes()
+        .layer(CREASE_LAYER, Domain::Edge)
+        .is_none()
+    {
+        return Vec::new();
+    }
+    let mut out: Vec<(EdgeId, f64)> = faces
+        .iter()
+        .flat_map(|&f| mesh.face_edges(f))
+        .filter_map(|e| match mesh.attr(CREASE_LAYER, Domain::Edge, e.index()) {
+            Some(AttrValue::Scalar(s)) if s > 0.0 => Some((e, s)),
+            _ => None,
+        })
+        .collect();
+    out.sort_unstable_by_key(|&(e, _)| e);
+    out.dedup_by_key(|&mut (e, _)| e);
+    out
 }

@@ -101,6 +101,16 @@ choice!(
     PnPattern { Uniform = "uniform", Gl = "gl" }
 );
 
+choice!(
+    /// `subdivide`'s refinement rules.
+    SubdivisionScheme { CatmullClark = "catmull_clark", Simple = "simple", Loop = "loop" }
+);
+choice!(
+    /// `subdivide`'s boundary vertices of one face (OpenSubdiv's boundary
+    /// interpolation: edge and corner, or edge only).
+    SubdivisionBoundary { KeepCorners = "keep_corners", Smooth = "smooth" }
+);
+
 /// `extrude_*`: how far the copy moves (`offset` wins over `distance`).
 #[derive(Debug, Clone)]
 pub struct ExtrudeArgs {
@@ -224,6 +234,15 @@ pub enum OpArgs {
         ratios: Option<Vec<Scalar>>,
     },
     Triangulate,
+    Subdivide {
+        scheme: SubdivisionScheme,
+        levels: Scalar,
+        boundary: SubdivisionBoundary,
+        crease_angle: Option<Scalar>,
+    },
+    Crease {
+        sharpness: Scalar,
+    },
     Assign,
     Reverse,
     RecomputeNormals {

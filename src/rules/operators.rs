@@ -11,7 +11,8 @@ use crate::kernel::Domain;
 
 use super::op_args::{
     Adjacency, Axis, BooleanOp, ChoiceArg, Combine, DeleteKind, EdgeTestName, GridKind, Mesher,
-    PnPattern, SkinMethod, TessMode, UpAxis, VertexPlacement,
+    PnPattern, SkinMethod, SubdivisionBoundary, SubdivisionScheme, TessMode, UpAxis,
+    VertexPlacement,
 };
 
 /// Every operator, by identity (the engine's dispatch is a `match` on it).
@@ -36,6 +37,8 @@ pub enum OpId {
     InsetRegion,
     SplitEdges,
     Triangulate,
+    Subdivide,
+    Crease,
     Reverse,
     RecomputeNormals,
     Delete,
@@ -820,6 +823,65 @@ pub static OPERATORS: &[OperatorDef] = &[
         tags: true,
         example: "{}",
         summary: "triangulate faces",
+    },
+    OperatorDef {
+        id: OpId::Subdivide,
+        name: "subdivide",
+        family: Family::Kernel,
+        domains: FACES,
+        params: &[
+            param(
+                "scheme",
+                Choice(SubdivisionScheme::NAMES),
+                Default::Choice(0),
+                "\"catmull_clark\" (any faces), \"simple\" (its topology, the shape unchanged) or \"loop\" (triangles)",
+            ),
+            ParamDef {
+                key: "levels",
+                kind: Scalar,
+                default: Default::Number(1.0),
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: Some(8.0),
+                doc: "times to refine, 1 to 8 (1)",
+            },
+            param(
+                "boundary",
+                Choice(SubdivisionBoundary::NAMES),
+                Default::Choice(0),
+                "\"keep_corners\": a boundary vertex of one face stays put (OpenSubdiv's default); \"smooth\": it follows the boundary curve",
+            ),
+            param(
+                "crease_angle",
+                Scalar,
+                Default::None,
+                "edges whose two faces meet at more than this many degrees stay sharp (none)",
+            ),
+        ],
+        exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ levels = 2 }",
+        summary: "subdivision surface: Catmull–Clark, simple or Loop, with OpenSubdiv's boundary and crease rules",
+    },
+    OperatorDef {
+        id: OpId::Crease,
+        name: "crease",
+        family: Family::Kernel,
+        domains: &[Edge, Face],
+        params: &[at_least(
+            "sharpness",
+            Scalar,
+            Default::Number(10.0),
+            0.0,
+            "levels of `subdivide` the edges stay sharp; fractions blend, 10 or more is always (10)",
+        )],
+        exclusive: &[],
+        reads: Reads::Edges,
+        tags: false,
+        example: "{ sharpness = 2 }",
+        summary: "mark edges as creases for `subdivide` (OpenSubdiv sharpness)",
     },
     OperatorDef {
         id: OpId::Assign,

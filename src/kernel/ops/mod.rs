@@ -18,6 +18,7 @@
 //! | [`extrude`] | extrude verts, edges, faces (individual), face region |
 //! | [`inset`] | inset faces (individual), inset region |
 //! | [`split`] | split edges (cuts, ratios) |
+//! | [`subdivide`] | Catmull–Clark, simple and Loop subdivision (OpenSubdiv rules, creases) |
 //! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
 //! | [`skin`] | wire edges into closed tubes (frusta, joint spheres) |
 
@@ -38,6 +39,7 @@ pub mod select;
 pub(crate) mod side_table;
 pub mod skin;
 pub mod split;
+pub mod subdivide;
 pub mod transform;
 
 /// A set of elements: sorted ascending, no duplicates.

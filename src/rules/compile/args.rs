@@ -278,6 +278,15 @@ pub(super) fn typed(def: &'static OperatorDef, args: Vec<Arg>) -> OpArgs {
             ratios: r.opt_list("ratios"),
         },
         OpId::Triangulate => OpArgs::Triangulate,
+        OpId::Subdivide => OpArgs::Subdivide {
+            scheme: r.choice("scheme"),
+            levels: r.scalar("levels"),
+            boundary: r.choice("boundary"),
+            crease_angle: r.opt_scalar("crease_angle"),
+        },
+        OpId::Crease => OpArgs::Crease {
+            sharpness: r.scalar("sharpness"),
+        },
         OpId::Assign => OpArgs::Assign,
         OpId::Reverse => OpArgs::Reverse,
         OpId::RecomputeNormals => OpArgs::RecomputeNormals {

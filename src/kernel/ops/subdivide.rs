@@ -1,0 +1,666 @@
+//! Subdivision surfaces on a region of faces: Catmull–Clark, its "simple"
+//! (midpoint) topology, and Loop for triangles, with OpenSubdiv's rules
+//! (Sdc) for boundaries and semi-sharp creases, so a cage gives the points
+//! Blender's subdivision-surface modifier gives (limit surface off).
+//!
+//! One level:
+//! 1. every new position is computed from the current cage (face points,
+//!    edge points, vertex points; Sdc's Catmark and Loop masks);
+//! 2. the topology changes by Euler operators only: every region edge is
+//!    split at its middle (`split_edge`), then every face is cut into
+//!    quads around a centre vertex (Catmull–Clark: one `split_face`, one
+//!    `split_edge` of that diagonal for the centre, `n − 2` more
+//!    `split_face`s) or into four triangles (Loop: three `split_face`s);
+//! 3. the positions are written and the touched faces' normals refreshed.
+//!
+//! The region's border (edges with one region face) is a boundary, edges
+//! with more than two region faces are non-manifold: both are infinitely
+//! sharp, as in OpenSubdiv. Faces outside the region that share a border
+//! edge gain its midpoint (they keep their shape: the midpoint of a sharp
+//! edge lies on it). Each new piece copies its face's attributes (parts,
+//! materials) through `split_face`.
+//!
+//! Creases (OpenSubdiv "uniform" creasing): an edge's sharpness `s` makes
+//! its edge point `lerp(smooth, midpoint, min(s, 1))`; its two children
+//! get `s − 1`. A vertex on no or one sharp edge is smooth, on two a
+//! crease (`(a + 6v + b) / 8`), on more (or a boundary corner) a corner
+//! (fixed). When a vertex's rule changes from parent to child level the
+//! two positions are blended by the mean sharpness of the edges that
+//! became smooth (Sdc `Crease::ComputeFractionalWeightAtVertex`).
+
+use glam::DVec3;
+use rustc_hash::{FxHashMap, FxHashSet};
+
+use super::{canonical, OpError, Selection};
+use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
+
+/// Which refinement rules [`subdivide`] applies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scheme {
+    /// Catmull–Clark: quads around face points, smoothed.
+    CatmullClark,
+    /// Catmull–Clark's topology with points at face centres and edge
+    /// midpoints; the shape does not change.
+    Simple,
+    /// Loop: every triangle into four, smoothed (triangles only).
+    Loop,
+}
+
+/// How boundary vertices with a single face behave (OpenSubdiv's
+/// `VtxBoundaryInterpolation`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Boundary {
+    /// `EDGE_AND_CORNER`, OpenSubdiv's default: such a vertex is a corner
+    /// and stays where it is (Blender: "Keep Corners").
+    KeepCorners,
+    /// `EDGE_ONLY`: boundary vertices all follow the boundary curve
+    /// (Blender: "All").
+    Smooth,
+}
+
+/// What [`subdivide`] is asked to do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Subdivision {
+    pub scheme: Scheme,
+    pub levels: u32,
+    pub boundary: Boundary,
+    /// Edges whose two faces' normals differ by more than this many
+    /// degrees are infinitely sharp (judged on the cage).
+    pub crease_angle: Option<f64>,
+}
+
+/// What [`subdivide`] made, and the sharpness left on the final edges.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Subdivided {
+    /// The faces that replace the region (the originals keep their ids as
+    /// one of their pieces), the new vertices and the new edges.
+    pub made: Selection,
+    /// Every final edge with sharpness left (`s − levels > 0`), ascending:
+    /// what a further subdivision reads.
+    pub creases: Vec<(EdgeId, f64)>,
+}
+
+/// The most elements (of each kind) one call may create: far past any
+/// mesh a run may make, and well inside the u32 id space.
+const MAX_NEW: u128 = 1 << 30;
+
+/// Subdivides the region `faces` `levels` times. `creases` gives the
+/// sharpness of cage edges (any order; edges not listed, or outside the
+/// region, are smooth; `f64::INFINITY` is sharp at every level).
+pub fn subdivide(
+    mesh: &mut Mesh,
+    faces: &[FaceId],
+    options: Subdivision,
+    creases: &[(EdgeId, f64)],
+) -> Result<Subdivided, OpError> {
+    let mut region = canonical(faces);
+    for &f in &region {
+        mesh.check_face(f)?;
+    }
+    if options.scheme == Scheme::Loop {
+        let bad: Vec<FaceId> = region
+            .iter()
+            .copied()
+            .filter(|&f| mesh.face_len(f) != 3)
+            .collect();
+        if let Some(first) = bad.first() {
+            return Err(OpError::parameter(
+                "scheme",
+                format!(
+                    "Loop subdivision takes triangles only: {} selected face(s) have more \
+                     than three sides (the first is face {}, of {} sides); triangulate them \
+                     first or use scheme = \"catmull_clark\"",
+                    bad.len(),
+                    first.index(),
+                    mesh.face_len(*first)
+                ),
+            ));
+        }
+    }
+    let predicted = predict(mesh, &region, options);
+    let room = |capacity: usize| u128::from(u32::MAX) - capacity as u128;
+    if predicted.iter().any(|&n| n > MAX_NEW)
+        || predicted[0] > room(mesh.vert_capacity())
+        || predicted[1] > room(mesh.edge_capacity())
+        || predicted[2] > room(mesh.face_capacity())
+    {
+        return Err(OpError::parameter(
+            "levels",
+            format!(
+                "{} levels would make {} vertices and {} faces, past the mesh's id space",
+                options.levels, predicted[0], predicted[2]
+            ),
+        ));
+    }
+
+    let mut sharp: FxHashMap<EdgeId, f64> = creases
+        .iter()
+        .copied()
+        .filter(|&(e, s)| s > 0.0 && mesh.contains_edge(e))
+        .map(|(e, s)| (e, if s >= SHARPNESS_INFINITE { INFINITE } else { s }))
+        .collect();
+    if let Some(angle) = options.crease_angle {
+        let in_region: FxHashSet<FaceId> = region.iter().copied().collect();
+        let cos_limit = libm::cos(angle.to_radians());
+        for &f in &region {
+            for e in mesh.face_edges(f) {
+                if let [a, b] = region_faces(mesh, e, &in_region)[..] {
+                    if mesh.face_normal(a).dot(mesh.face_normal(b)) < cos_limit {
+                        sharp.insert(e, INFINITE);
+                    }
+                }
+            }
+        }
+    }
+    let mut made = Selection::new();
+    for _ in 0..options.levels {
+        let level = refine(mesh, &region, options, &sharp)?;
+        made.verts.extend_from_slice(&level.new_verts);
+        made.edges.extend_from_slice(&level.new_edges);
+        region = level.faces;
+        sharp = level.sharp;
+    }
+    made.faces = region;
+    made.normalize();
+    let mut creases: Vec<(EdgeId, f64)> = sharp.into_iter().collect();
+    creases.sort_unstable_by_key(|&(e, _)| e);
+    Ok(Subdivided { made, creases })
+}
+
+/// Vertices, edges and faces `options` adds to the region (an upper bound
+/// the caller checks before anything is made; a face of `n` sides becomes
+/// `n` quads, or a triangle four triangles).
+pub fn predict(mesh: &Mesh, faces: &[FaceId], options: Subdivision) -> [u128; 3] {
+    let corners: u128 = faces.iter().map(|&f| mesh.face_len(f) as u128).sum();
+    let mut f = faces.len() as u128;
+    // Region edges: each is used by one or two faces (more only where
+    // non-manifold); bound it by the corners.
+    let mut e = corners;
+    let mut made = [0u128; 3];
+    for level in 0..options.levels {
+        let (new_v, new_e, new_f) = match options.scheme {
+            Scheme::Loop => (e, e + 3 * f, 3 * f),
+            _ if level == 0 => (e + f, e + corners, corners.saturating_sub(f)),
+            _ => (e + f, e + 4 * f, 3 * f),
+        };
+        made[0] = made[0].saturating_add(new_v);
+        made[1] = made[1].saturating_add(new_e);
+        made[2] = made[2].saturating_add(new_f);
+        e = e.saturating_add(new_e);
+        f = f.saturating_add(new_f);
+        if made.iter().any(|&n| n > MAX_NEW) {
+            break;
+        }
+    }
+    made
+}
+
+struct Level {
+    faces: Vec<FaceId>,
+    new_verts: Vec<VertId>,
+    new_edges: Vec<EdgeId>,
+    sharp: FxHashMap<EdgeId, f64>,
+}
+
+/// An infinitely sharp edge (boundaries, non-manifold edges, creases by
+/// angle): sharp at every level.
+const INFINITE: f64 = f64::INFINITY;
+
+/// Sharpness from which a crease is infinite (OpenSubdiv's
+/// `Crease::SHARPNESS_INFINITE`; Blender's crease 1.0 maps to it).
+pub const SHARPNESS_INFINITE: f64 = 10.0;
+
+/// One level of refinement of `region` (canonical order).
+fn refine(
+    mesh: &mut Mesh,
+    region: &[FaceId],
+    options: Subdivision,
+    sharp: &FxHashMap<EdgeId, f64>,
+) -> Result<Level, OpError> {
+    let in_region: FxHashSet<FaceId> = region.iter().copied().collect();
+    // The region's edges and vertices, in canonical order.
+    let mut edges: Vec<EdgeId> = region.iter().flat_map(|&f| mesh.face_edges(f)).collect();
+    edges = super::into_canonical(edges);
+    let mut verts: Vec<VertId> = region.iter().flat_map(|&f| mesh.face_verts(f)).collect();
+    verts = super::into_canonical(verts);
+
+    // Effective sharpness: boundary and non-manifold edges are infinitely
+    // sharp (Sdc treats both as creases).
+    let edge_sharpness: FxHashMap<EdgeId, f64> = edges
+        .iter()
+        .map(|&e| {
+            let s = if mesh.edge_face_count(e) == 0 || region_faces(mesh, e, &in_region).len() != 2
+            {
+                INFINITE
+            } else {
+                sharp.get(&e).copied().unwrap_or(0.0)
+            };
+            (e, s)
+        })
+        .collect();
+
+    // 1. New positions from the cage.
+    let face_point: FxHashMap<FaceId, DVec3> =
+        region.iter().map(|&f| (f, mesh.face_center(f))).collect();
+    let mut edge_point: FxHashMap<EdgeId, DVec3> = FxHashMap::default();
+    for &e in &edges {
+        let [a, b] = mesh.edge_verts(e);
+        let (pa, pb) = (mesh.position(a), mesh.position(b));
+        let mid = (pa + pb) * 0.5;
+        let s = edge_sharpness[&e];
+        let point = match options.scheme {
+            Scheme::Simple => mid,
+            _ if s >= 1.0 => mid,
+            Scheme::CatmullClark => {
+                let fs = region_faces(mesh, e, &in_region);
+                let smooth = (pa + pb + face_point[&fs[0]] + face_point[&fs[1]]) * 0.25;
+                smooth.lerp(mid, s)
+            }
+            Scheme::Loop => {
+                let fs = region_faces(mesh, e, &in_region);
+                let opposite = |f: FaceId| {
+                    mesh.face_verts(f)
+                        .find(|&v| v != a && v != b)
+                        .map_or(mid, |v| mesh.position(v))
+                };
+                let smooth = (pa + pb) * 0.375 + (opposite(fs[0]) + opposite(fs[1])) * 0.125;
+                smooth.lerp(mid, s)
+            }
+        };
+        edge_point.insert(e, point);
+    }
+    let mut vert_point: FxHashMap<VertId, DVec3> = FxHashMap::default();
+    for &v in &verts {
+        let point = match options.scheme {
+            Scheme::Simple => mesh.position(v),
+            _ => vertex_point(mesh, v, options, &in_region, &edge_sharpness, &face_point),
+        };
+        vert_point.insert(v, point);
+    }
+
+    // 2. Topology. Every region edge split at its middle; the children
+    // inherit the sharpness less one.
+    let mut new_verts = Vec::with_capacity(edges.len() + region.len());
+    let mut new_edges = Vec::new();
+    let mut child_sharp: FxHashMap<EdgeId, f64> = FxHashMap::default();
+    let mut midpoints: FxHashSet<VertId> = FxHashSet::default();
+    for &e in &edges {
+        let (m, rest) = mesh.split_edge(e, 0.5)?;
+        mesh.set_position(m, edge_point[&e]);
+        new_verts.push(m);
+        new_edges.push(rest);
+        midpoints.insert(m);
+        if let Some(&s) = sharp.get(&e) {
+            if s - 1.0 > 0.0 {
+                child_sharp.insert(e, s - 1.0);
+                child_sharp.insert(rest, s - 1.0);
+            }
+        }
+    }
+    let mut faces = Vec::with_capacity(region.len() * 4);
+    for &f in region {
+        // The face's midpoints, in winding order from its first corner:
+        // its ring alternates corner, midpoint.
+        let ring: Vec<VertId> = mesh.face_verts(f).collect();
+        let mids: Vec<VertId> = ring
+            .iter()
+            .copied()
+            .filter(|v| midpoints.contains(v))
+            .collect();
+        debug_assert_eq!(mids.len() * 2, ring.len());
+        faces.push(f);
+        match options.scheme {
+            Scheme::Loop => {
+                // Cut the three corners off; `f` keeps the first.
+                let (rest, e0) = mesh.split_face(f, mids[0], mids[1])?;
+                let (rest2, e1) = mesh.split_face(rest, mids[1], mids[2])?;
+                let (centre, e2) = mesh.split_face(rest2, mids[2], mids[0])?;
+                new_edges.extend([e0, e1, e2]);
+                faces.extend([rest, rest2, centre]);
+            }
+            _ => {
+                // The first quad is cut off along a diagonal whose middle
+                // becomes the face point; then one quad per other midpoint.
+                let (mut rest, diagonal) = mesh.split_face(f, mids[0], mids[1])?;
+                let (centre, half) = mesh.split_edge(diagonal, 0.5)?;
+                mesh.set_position(centre, face_point[&f]);
+                new_verts.push(centre);
+                new_edges.extend([diagonal, half]);
+                for &m in &mids[2..] {
+                    let (next, spoke) = mesh.split_face(rest, centre, m)?;
+                    faces.push(rest);
+                    new_edges.push(spoke);
+                    rest = next;
+                }
+                faces.push(rest);
+            }
+        }
+    }
+
+    // 3. The cage's vertices move last (the edge and face points above
+    // were computed from their old positions).
+    for (&v, &p) in &vert_point {
+        mesh.set_position(v, p);
+    }
+    let mut touched: Vec<FaceId> = verts
+        .iter()
+        .chain(new_verts.iter())
+        .flat_map(|&v| mesh.vert_faces(v).collect::<Vec<_>>())
+        .collect();
+    touched = super::into_canonical(touched);
+    for f in touched {
+        mesh.refresh_normal(f);
+    }
+    Ok(Level {
+        faces: super::into_canonical(faces),
+        new_verts,
+        new_edges,
+        sharp: child_sharp,
+    })
+}
+
+/// A vertex's rule (Sdc `Crease::Rule`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Rule {
+    Smooth,
+    Crease,
+    Corner,
+}
+
+/// The rule for a vertex on `sharp_edges` sharp edges.
+fn rule_of(sharp_edges: usize, corner: bool) -> Rule {
+    match sharp_edges {
+        _ if corner => Rule::Corner,
+        0 | 1 => Rule::Smooth,
+        2 => Rule::Crease,
+        _ => Rule::Corner,
+    }
+}
+
+/// The refined position of cage vertex `v` (Catmull–Clark or Loop).
+fn vertex_point(
+    mesh: &Mesh,
+    v: VertId,
+    options: Subdivision,
+    in_region: &FxHashSet<FaceId>,
+    edge_sharpness: &FxHashMap<EdgeId, f64>,
+    face_point: &FxHashMap<FaceId, DVec3>,
+) -> DVec3 {
+    let p = mesh.position(v);
+    // The region's edges and faces around `v`, in canonical order (sums
+    // in a fixed order: the same bits on every run).
+    let mut edges: Vec<EdgeId> = mesh
+        .vert_edges(v)
+        .filter(|e| edge_sharpness.contains_key(e))
+        .collect();
+    edges.sort_unstable();
+    let mut faces: Vec<FaceId> = mesh
+        .vert_faces(v)
+        .filter(|f| in_region.contains(f))
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    let sharpness: Vec<f64> = edges.iter().map(|e| edge_sharpness[e]).collect();
+    let boundary_edges = edges
+        .iter()
+        .filter(|&&e| edge_sharpness[&e] == INFINITE && region_faces(mesh, e, in_region).len() != 2)
+        .count();
+    // A boundary vertex of one face is a corner under EDGE_AND_CORNER.
+    let corner =
+        options.boundary == Boundary::KeepCorners && boundary_edges > 0 && faces.len() == 1;
+    let parent = rule_of(sharpness.iter().filter(|&&s| s > 0.0).count(), corner);
+    let child = rule_of(sharpness.iter().filter(|&&s| s - 1.0 > 0.0).count(), corner);
+
+    // `spent`: the sharpness the level has used up (0 for the parent's
+    // rule, 1 for the child's), so a crease's two edges are the right ones.
+    let at = |rule: Rule, spent: f64| -> DVec3 {
+        match rule {
+            Rule::Corner => p,
+            Rule::Crease => {
+                // The two sharp edges' far ends.
+                let ends: Vec<DVec3> = edges
+                    .iter()
+                    .zip(&sharpness)
+                    .filter(|(_, &s)| s - spent > 0.0)
+                    .map(|(&e, _)| mesh.position(mesh.edge_other_vert(e, v)))
+                    .collect();
+                (ends[0] + p * 6.0 + ends[1]) * 0.125
+            }
+            Rule::Smooth => {
+                let n = edges.len() as f64;
+                let ring: DVec3 = edges
+                    .iter()
+                    .map(|&e| mesh.position(mesh.edge_other_vert(e, v)))
+                    .sum();
+                match options.scheme {
+                    Scheme::Loop => {
+                        let c = 0.375 + 0.25 * libm::cos(2.0 * std::f64::consts::PI / n);
+                        let beta = (0.625 - c * c) / n;
+                        p * (1.0 - n * beta) + ring * beta
+                    }
+                    _ => {
+                        let centres: DVec3 = faces.iter().map(|f| face_point[f]).sum();
+                        (p * (n - 2.0) + ring / n + centres / n) / n
+                    }
+                }
+            }
+        }
+    };
+    let parent_point = at(parent, 0.0);
+    if parent == child {
+        return parent_point;
+    }
+    // Blend by the mean sharpness of the edges that turn smooth.
+    let turning: Vec<f64> = sharpness
+        .iter()
+        .copied()
+        .filter(|&s| s > 0.0 && s - 1.0 <= 0.0)
+        .collect();
+    if turning.is_empty() {
+        return parent_point;
+    }
+    let weight = (turning.iter().sum::<f64>() / turning.len() as f64).min(1.0);
+    parent_point * weight + at(child, 1.0) * (1.0 - weight)
+}
+
+/// The region's faces on edge `e`, ascending.
+fn region_faces(mesh: &Mesh, e: EdgeId, in_region: &FxHashSet<FaceId>) -> Vec<FaceId> {
+    let mut faces: Vec<FaceId> = mesh
+        .edge_faces(e)
+        .filter(|f| in_region.contains(f))
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    faces
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::kernel::ops::create::create_cube;
+    use crate::kernel::{AttrValue, Domain};
+
+    fn options(scheme: Scheme, levels: u32) -> Subdivision {
+        Subdivision {
+            scheme,
+            levels,
+            boundary: Boundary::KeepCorners,
+            crease_angle: None,
+        }
+    }
+
+    fn cube() -> (Mesh, Vec<FaceId>) {
+        let mut mesh = Mesh::new();
+        create_cube(&mut mesh, 2.0).unwrap();
+        let faces = mesh.face_ids().collect();
+        (mesh, faces)
+    }
+
+    #[test]
+    fn a_cube_refines_to_the_catmull_clark_counts() {
+        for (levels, want) in [(1, (26, 48, 24)), (2, (98, 192, 96)), (3, (386, 768, 384))] {
+            let (mut mesh, faces) = cube();
+            let done = subdivide(
+                &mut mesh,
+                &faces,
+                options(Scheme::CatmullClark, levels),
+                &[],
+            )
+            .unwrap();
+            mesh.validate().unwrap();
+            let got = (mesh.vert_count(), mesh.edge_count(), mesh.face_count());
+            assert_eq!(got, want, "level {levels}");
+            assert_eq!(done.made.faces.len(), want.2);
+            let report = mesh.report();
+            assert!(report.watertight && report.consistently_oriented);
+            assert!(mesh.face_ids().all(|f| mesh.face_len(f) == 4));
+        }
+        // Level 1 by hand: a corner of valence 3 goes to
+        // ((n − 2) v + Σ edge ends / n + Σ face points / n) / n.
+        let (mut mesh, faces) = cube();
+        subdivide(&mut mesh, &faces, options(Scheme::CatmullClark, 1), &[]).unwrap();
+        // At (1, 1, 1): edge ends and face points each sum to (1, 1, 1),
+        // so the corner goes to (1 + 1/3 + 1/3) / 3 = 5/9.
+        let corner = DVec3::splat(5.0 / 9.0);
+        let far = mesh
+            .vert_ids()
+            .map(|v| mesh.position(v))
+            .max_by(|a, b| a.element_sum().total_cmp(&b.element_sum()))
+            .unwrap();
+        assert!((far - corner).length() < 1e-15, "{far} vs {corner}");
+    }
+
+    #[test]
+    fn loop_on_a_tetrahedron_gives_loops_weights() {
+        // A regular tetrahedron centred at the origin: the corners sum to
+        // zero, so with β = 3/16 (valence 3) a corner goes to v / 4 and an
+        // edge point 3/8 (a + b) + 1/8 (c + d) to (a + b) / 4.
+        let mut mesh = Mesh::new();
+        let p = [
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(1.0, -1.0, -1.0),
+            DVec3::new(-1.0, 1.0, -1.0),
+            DVec3::new(-1.0, -1.0, 1.0),
+        ];
+        let v: Vec<VertId> = p.iter().map(|&q| mesh.make_vert(q)).collect();
+        for ring in [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]] {
+            mesh.make_face(&ring.map(|i| v[i])).unwrap();
+        }
+        let faces: Vec<FaceId> = mesh.face_ids().collect();
+        let done = subdivide(&mut mesh, &faces, options(Scheme::Loop, 1), &[]).unwrap();
+        mesh.validate().unwrap();
+        assert_eq!(
+            (mesh.vert_count(), mesh.edge_count(), mesh.face_count()),
+            (10, 24, 16)
+        );
+        assert!(mesh.face_ids().all(|f| mesh.face_len(f) == 3));
+        for (i, &corner) in v.iter().enumerate() {
+            assert!((mesh.position(corner) - p[i] / 4.0).length() < 1e-15);
+        }
+        let mut mids: Vec<DVec3> = done.made.verts.iter().map(|&m| mesh.position(m)).collect();
+        let mut want: Vec<DVec3> = (0..4)
+            .flat_map(|i| (i + 1..4).map(move |j| (i, j)))
+            .map(|(i, j)| (p[i] + p[j]) / 4.0)
+            .collect();
+        let key = |q: &DVec3| (q.x, q.y, q.z);
+        mids.sort_by(|a, b| key(a).partial_cmp(&key(b)).unwrap());
+        want.sort_by(|a, b| key(a).partial_cmp(&key(b)).unwrap());
+        assert_eq!(mids.len(), 6);
+        for (m, w) in mids.iter().zip(&want) {
+            assert!((*m - *w).length() < 1e-15, "{m} vs {w}");
+        }
+        assert_eq!(mesh.report().volume.map(f64::signum), Some(1.0));
+    }
+
+    #[test]
+    fn loop_refuses_faces_that_are_not_triangles() {
+        let (mut mesh, faces) = cube();
+        let err = subdivide(&mut mesh, &faces, options(Scheme::Loop, 1), &[]).unwrap_err();
+        assert!(
+            matches!(err, OpError::Parameter { name: "scheme", .. }),
+            "{err}"
+        );
+        assert_eq!(mesh.vert_count(), 8, "nothing made before the refusal");
+    }
+
+    #[test]
+    fn simple_keeps_the_shape_and_an_infinite_crease_keeps_the_cube() {
+        let (mut mesh, faces) = cube();
+        subdivide(&mut mesh, &faces, options(Scheme::Simple, 2), &[]).unwrap();
+        mesh.validate().unwrap();
+        let report = mesh.report();
+        assert!((report.area - 24.0).abs() < 1e-12 && (report.volume.unwrap() - 8.0).abs() < 1e-12);
+        // Every edge infinitely sharp: Catmull–Clark points on sharp edges
+        // are midpoints and the corners stay, so the cube stays a cube.
+        let (mut mesh, faces) = cube();
+        let creases: Vec<(EdgeId, f64)> = mesh.edge_ids().map(|e| (e, 10.0)).collect();
+        let done = subdivide(
+            &mut mesh,
+            &faces,
+            options(Scheme::CatmullClark, 2),
+            &creases,
+        )
+        .unwrap();
+        assert!((mesh.report().volume.unwrap() - 8.0).abs() < 1e-12);
+        assert!(done.creases.iter().all(|&(_, s)| s == f64::INFINITY));
+        assert_eq!(done.creases.len(), 12 * 4, "each cube edge in four pieces");
+        // By angle: the same.
+        let (mut mesh, faces) = cube();
+        let by_angle = Subdivision {
+            crease_angle: Some(45.0),
+            ..options(Scheme::CatmullClark, 2)
+        };
+        subdivide(&mut mesh, &faces, by_angle, &[]).unwrap();
+        assert!((mesh.report().volume.unwrap() - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sharpness_is_spent_one_level_at_a_time() {
+        let (mut mesh, faces) = cube();
+        let e = mesh.edge_ids().next().unwrap();
+        let done = subdivide(
+            &mut mesh,
+            &faces,
+            options(Scheme::CatmullClark, 2),
+            &[(e, 2.5)],
+        )
+        .unwrap();
+        assert_eq!(done.creases.len(), 4);
+        assert!(done.creases.iter().all(|&(_, s)| (s - 0.5).abs() < 1e-15));
+    }
+
+    #[test]
+    fn a_region_subdivides_alone_and_its_neighbours_gain_midpoints() {
+        let (mut mesh, faces) = cube();
+        mesh.add_layer("part", Domain::Face, AttrValue::Int(0))
+            .unwrap();
+        let top = faces
+            .iter()
+            .copied()
+            .find(|&f| mesh.face_normal(f).z > 0.5)
+            .unwrap();
+        let _ = mesh.set_attr("part", Domain::Face, top.index(), AttrValue::Int(7));
+        let done = subdivide(&mut mesh, &[top], options(Scheme::CatmullClark, 1), &[]).unwrap();
+        mesh.validate().unwrap();
+        assert_eq!(mesh.face_count(), 6 - 1 + 4);
+        assert_eq!(done.made.faces.len(), 4);
+        for &f in &done.made.faces {
+            assert_eq!(
+                mesh.attr("part", Domain::Face, f.index()),
+                Some(AttrValue::Int(7))
+            );
+        }
+        // The four side faces are pentagons now, still flat: the border
+        // is sharp, its midpoints and (kept) corners stay in place.
+        let sides: Vec<FaceId> = mesh.face_ids().filter(|&f| mesh.face_len(f) == 5).collect();
+        assert_eq!(sides.len(), 4);
+        let report = mesh.report();
+        assert!(report.watertight);
+        assert!(
+            (report.volume.unwrap() - 8.0).abs() < 1e-12,
+            "the top's border stays"
+        );
+    }
+}
