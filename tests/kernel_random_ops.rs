@@ -45,7 +45,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(28);
+    let choice = rng.below(29);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -226,6 +226,19 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                 let _ = subdivide::subdivide(mesh, &region, options, &creases);
             }
             "subdivide"
+        }
+        27 => {
+            if !big {
+                let options = graftal::kernel::ops::solidify::Solidify {
+                    thickness: rng.unit() - 0.5,
+                    offset: rng.unit() * 2.0 - 1.0,
+                    even: rng.unit() < 0.5,
+                    rim: rng.unit() < 0.8,
+                };
+                let _ =
+                    graftal::kernel::ops::solidify::solidify(mesh, &some(rng, &faces, 4), options);
+            }
+            "solidify"
         }
         _ => {
             match rng.below(3) {

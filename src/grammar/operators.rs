@@ -239,6 +239,16 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             let [v, e, f] = predict(mesh, &sel.by_domain.faces, options);
             u64::try_from(v.saturating_add(e).saturating_add(f)).unwrap_or(u64::MAX)
         }
+        // A copy of every corner's vertex, edge and face at most, and a rim
+        // quad (two edges) per boundary edge.
+        OpArgs::Solidify { .. } => m(
+            sel.by_domain
+                .faces
+                .iter()
+                .map(|&f| mesh.face_len(f) as u64)
+                .fold(0, u64::saturating_add),
+            5,
+        ),
         // n - 3 diagonals and n - 2 triangles for the one face removed.
         OpArgs::Triangulate => sel
             .by_domain
@@ -572,6 +582,20 @@ pub(super) fn apply(
                 }
             }
             done.made
+        }
+        OpArgs::Solidify {
+            thickness,
+            offset,
+            even,
+            rim,
+        } => {
+            let options = ops::solidify::Solidify {
+                thickness: s(thickness),
+                offset: s(offset),
+                even: *even,
+                rim: *rim,
+            };
+            ops::solidify::solidify(mesh, &faces_list, options)?
         }
         OpArgs::Crease { sharpness } => {
             let value = AttrValue::Scalar(s(sharpness));

@@ -243,6 +243,12 @@ pub enum OpArgs {
     Crease {
         sharpness: Scalar,
     },
+    Solidify {
+        thickness: Scalar,
+        offset: Scalar,
+        even: bool,
+        rim: bool,
+    },
     Assign,
     Reverse,
     RecomputeNormals {

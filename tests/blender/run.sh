@@ -2,7 +2,8 @@
 # graftal's modelling operators against Blender 3.4 run in the background
 # (`make test-blender`; CI runs it after `make test`): installs Blender from
 # Debian with apt-get when it is missing, then runs each oracle script of
-# tests/blender/ inside `blender -b` with the graftal binary given in
+# tests/blender/ (not _common.py, which they import) inside `blender -b`
+# with the graftal binary given in
 # $GRAFTAL. Work files go to a temporary folder, removed afterwards unless
 # KEEP_STATE=1. Exits 1 when any script reports a mismatch.
 #
@@ -23,7 +24,7 @@ fi
 blender --version | head -1
 
 status=0
-for script in "$here"/*.py; do
+for script in "$here"/[!_]*.py; do
     name=$(basename "$script" .py)
     echo "== $name (Blender oracle)"
     # Blender prints its own banner and "Blender quit"; the script's lines

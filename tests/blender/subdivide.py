@@ -18,25 +18,17 @@ in f64 and is the more exact of the two. Prints the largest deviation of
 each case; exits 1 on any mismatch.
 """
 
-import math
 import os
-import subprocess
 import sys
 
 import bmesh
 import bpy
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _common import WORK, evaluated, fresh, report, run_graftal, write_obj  # noqa: E402
+
 # f32 rounding of coordinates of size ~1 through three levels of f32 sums.
 TOLERANCE = 2e-6
-
-argv = sys.argv[sys.argv.index("--") + 1 :]
-GRAFTAL, WORK = argv[0], argv[1]
-os.makedirs(WORK, exist_ok=True)
-
-
-def fresh():
-    bpy.ops.object.select_all(action="SELECT")
-    bpy.ops.object.delete()
 
 
 def cage(kind):
@@ -79,14 +71,6 @@ def cage(kind):
     return obj, crease
 
 
-def write_obj(me, path):
-    with open(path, "w") as f:
-        for v in me.vertices:
-            f.write("v %r %r %r\n" % (v.co.x, v.co.y, v.co.z))
-        for p in me.polygons:
-            f.write("f " + " ".join(str(i + 1) for i in p.vertices) + "\n")
-
-
 def blender_points(obj, levels, kind, boundary):
     mod = obj.modifiers.new("subsurf", "SUBSURF")
     mod.subdivision_type = "SIMPLE" if kind == "simple" else "CATMULL_CLARK"
@@ -95,66 +79,9 @@ def blender_points(obj, levels, kind, boundary):
     mod.use_limit_surface = False
     mod.boundary_smooth = "ALL" if boundary == "smooth" else "PRESERVE_CORNERS"
     mod.use_creases = True
-    deps = bpy.context.evaluated_depsgraph_get()
-    evaluated = obj.evaluated_get(deps)
-    me = evaluated.to_mesh()
-    points = [tuple(v.co) for v in me.vertices]
-    faces = len(me.polygons)
-    evaluated.to_mesh_clear()
+    points, faces = evaluated(obj)
     obj.modifiers.remove(mod)
     return points, faces
-
-
-def graftal_points(name, levels, scheme, boundary, crease):
-    rules = os.path.join(WORK, name + ".toml")
-    out = os.path.join(WORK, name + ".obj")
-    with open(rules, "w") as f:
-        f.write('[start]\nimport = { path = "%s-cage.obj" }\n' % name.rsplit("-L", 1)[0])
-        for where, sharpness in crease or []:
-            f.write(
-                '\n[[step]]\non = "edges"\nselect = "%s"\ncrease = { sharpness = %r }\n'
-                % (where, sharpness)
-            )
-        f.write(
-            '\n[[step]]\nsubdivide = { levels = %d, scheme = "%s", boundary = "%s" }\n'
-            % (levels, scheme, boundary)
-        )
-    subprocess.run([GRAFTAL, "run", rules, "-o", out, "--quiet"], check=True)
-    points, faces = [], 0
-    with open(out) as f:
-        for line in f:
-            if line.startswith("v "):
-                points.append(tuple(float(x) for x in line.split()[1:4]))
-            elif line.startswith("f "):
-                faces += 1
-    return points, faces
-
-
-def match(ours, theirs):
-    """The largest distance of a one-to-one nearest match, or None."""
-    cell = 1e-3
-    grid = {}
-    for i, p in enumerate(theirs):
-        grid.setdefault(tuple(math.floor(c / cell) for c in p), []).append(i)
-    used = set()
-    worst = 0.0
-    for p in ours:
-        key = tuple(math.floor(c / cell) for c in p)
-        best, best_d = None, None
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                for dz in (-1, 0, 1):
-                    for i in grid.get((key[0] + dx, key[1] + dy, key[2] + dz), ()):
-                        if i in used:
-                            continue
-                        d = math.dist(p, theirs[i])
-                        if best_d is None or d < best_d:
-                            best, best_d = i, d
-        if best is None:
-            return None
-        used.add(best)
-        worst = max(worst, best_d)
-    return worst
 
 
 failures = []
@@ -174,18 +101,15 @@ for kind, scheme, boundary in cases:
         base = "%s-%s-%s" % (kind, scheme, boundary)
         write_obj(obj.data, os.path.join(WORK, base + "-cage.obj"))
         theirs, their_faces = blender_points(obj, levels, scheme, boundary)
-        ours, our_faces = graftal_points(
-            "%s-L%d" % (base, levels), levels, scheme, boundary, crease
+        steps = "".join(
+            '\n[[step]]\non = "edges"\nselect = "%s"\ncrease = { sharpness = %r }\n' % c
+            for c in crease or []
         )
-        worst = match(ours, theirs) if len(ours) == len(theirs) else None
-        ok = worst is not None and worst <= TOLERANCE and our_faces == their_faces
-        print(
-            "%-44s level %d: %6d vertices (Blender %6d), %6d faces (Blender %6d), max deviation %s %s"
-            % (base, levels, len(ours), len(theirs), our_faces, their_faces,
-               "-" if worst is None else "%.2e" % worst, "ok" if ok else "MISMATCH")
-        )
-        if not ok:
-            failures.append("%s level %d" % (base, levels))
+        steps += '\n[[step]]\nsubdivide = { levels = %d, scheme = "%s", boundary = "%s" }\n' % (
+            levels, scheme, boundary)
+        ours, our_faces = run_graftal("%s-L%d" % (base, levels), steps)
+        label = "%s level %d" % (base, levels)
+        report(label, ours, our_faces, theirs, their_faces, TOLERANCE, failures)
 
 if failures:
     print("FAILED: " + ", ".join(failures))

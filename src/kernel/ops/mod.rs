@@ -20,6 +20,7 @@
 //! | [`split`] | split edges (cuts, ratios) |
 //! | [`subdivide`] | Catmull–Clark, simple and Loop subdivision (OpenSubdiv rules, creases) |
 //! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
+//! | [`solidify`] | a sheet into a closed shell (Blender's simple solidify: offset, even thickness, rim) |
 //! | [`skin`] | wire edges into closed tubes (frusta, joint spheres) |
 
 use thiserror::Error;
@@ -38,6 +39,7 @@ pub mod merge;
 pub mod select;
 pub(crate) mod side_table;
 pub mod skin;
+pub mod solidify;
 pub mod split;
 pub mod subdivide;
 pub mod transform;

@@ -287,6 +287,12 @@ pub(super) fn typed(def: &'static OperatorDef, args: Vec<Arg>) -> OpArgs {
         OpId::Crease => OpArgs::Crease {
             sharpness: r.scalar("sharpness"),
         },
+        OpId::Solidify => OpArgs::Solidify {
+            thickness: r.scalar("thickness"),
+            offset: r.scalar("offset"),
+            even: r.flag("even"),
+            rim: r.flag("rim"),
+        },
         OpId::Assign => OpArgs::Assign,
         OpId::Reverse => OpArgs::Reverse,
         OpId::RecomputeNormals => OpArgs::RecomputeNormals {
