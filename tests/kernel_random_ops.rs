@@ -45,7 +45,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(29);
+    let choice = rng.below(30);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -239,6 +239,23 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                     graftal::kernel::ops::solidify::solidify(mesh, &some(rng, &faces, 4), options);
             }
             "solidify"
+        }
+        28 => {
+            if !big {
+                let options = graftal::kernel::ops::spin::Spin {
+                    angle_degrees: [360.0, 90.0, -200.0][rng.below(3)],
+                    steps: 1 + rng.below(6) as u32,
+                    axis: rng.point(),
+                    center: rng.point() * 0.2,
+                };
+                let _ = graftal::kernel::ops::spin::spin(
+                    mesh,
+                    &some(rng, &edges, 3),
+                    &some(rng, &verts, 2),
+                    options,
+                );
+            }
+            "spin"
         }
         _ => {
             match rng.below(3) {

@@ -1,5 +1,5 @@
 //! The modelling operators of issue 35 from rule files: `subdivide`,
-//! `crease`, `solidify`. Their geometry is checked against Blender by
+//! `crease`, `solidify`, `spin`. Their geometry is checked against Blender by
 //! `tests/blender/` (`make test-blender`) and in the kernel's unit tests;
 //! here: the rule-file surface (parameters, parts and materials, located
 //! errors, determinism) and the documentation's pictures.
@@ -48,6 +48,25 @@ fn subdivide_and_solidify_give_the_issues_counts() {
         "[start]\ncube = {}\n[[step]]\ntriangulate = {}\n[[step]]\nsubdivide = { scheme = \"loop\", levels = 2 }\n",
     );
     assert_eq!(counts(&loop_).2, 12 * 16);
+}
+
+#[test]
+fn a_vase_profile_spins_into_a_closed_solid() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("profile.obj"),
+        "v 0 0 0\nv 0.6 0 0\nv 0.4 0 0.5\nv 0.7 0 1.2\nv 0 0 1.2\nl 1 2 3 4 5\n",
+    )
+    .unwrap();
+    let s = stats(
+        d.path(),
+        "[start]\nimport = { path = \"profile.obj\" }\n\
+         [[step]]\non = \"edges\"\nspin = { steps = 24 }\npart = \"vase\"\n",
+    );
+    assert_eq!(counts(&s), (2 + 3 * 24, 4 * 24 + 3 * 24, 4 * 24));
+    assert_eq!(s["mesh"]["watertight"], true);
+    assert_eq!(s["mesh"]["consistently_oriented"], true);
+    assert!(s["mesh"]["volume"].as_f64().unwrap() > 0.0, "wound outward");
 }
 
 #[test]
@@ -189,7 +208,12 @@ fn the_documentation_pictures_rule_files_run() {
         let png = format!("{}.png", name.split('-').next().unwrap());
         assert!(dir.join(&png).exists(), "{path}: no {png}");
     }
-    for shell in ["subdivide-smooth", "subdivide-creased", "solidify-shell"] {
+    for shell in [
+        "subdivide-smooth",
+        "subdivide-creased",
+        "solidify-shell",
+        "spin-vase",
+    ] {
         let d = tempfile::tempdir().unwrap();
         let rules = std::fs::read_to_string(dir.join(format!("{shell}.toml"))).unwrap();
         let s = stats(d.path(), &rules);

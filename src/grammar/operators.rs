@@ -241,6 +241,12 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         }
         // A copy of every corner's vertex, edge and face at most, and a rim
         // quad (two edges) per boundary edge.
+        // A copy of each profile vertex per step, a quad (and two edges)
+        // per profile edge and step.
+        OpArgs::Spin { steps, .. } => m(
+            n(steps),
+            m(vert_count(), 2).saturating_add(m(edge_count(), 3)),
+        ),
         OpArgs::Solidify { .. } => m(
             sel.by_domain
                 .faces
@@ -596,6 +602,20 @@ pub(super) fn apply(
                 rim: *rim,
             };
             ops::solidify::solidify(mesh, &faces_list, options)?
+        }
+        OpArgs::Spin {
+            angle,
+            steps,
+            axis,
+            center,
+        } => {
+            let options = ops::spin::Spin {
+                angle_degrees: s(angle),
+                steps: ctx.count(steps, "steps")?,
+                axis: v(axis),
+                center: v(center),
+            };
+            ops::spin::spin(mesh, &by_domain.edges, &by_domain.verts, options)?
         }
         OpArgs::Crease { sharpness } => {
             let value = AttrValue::Scalar(s(sharpness));

@@ -243,6 +243,12 @@ pub enum OpArgs {
     Crease {
         sharpness: Scalar,
     },
+    Spin {
+        angle: Scalar,
+        steps: Scalar,
+        axis: Vector,
+        center: Vector,
+    },
     Solidify {
         thickness: Scalar,
         offset: Scalar,

@@ -21,6 +21,7 @@
 //! | [`subdivide`] | Catmull–Clark, simple and Loop subdivision (OpenSubdiv rules, creases) |
 //! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
 //! | [`solidify`] | a sheet into a closed shell (Blender's simple solidify: offset, even thickness, rim) |
+//! | [`spin`] | a lathe: edges swept into bands about an axis, vertices into arcs; seam and poles merged |
 //! | [`skin`] | wire edges into closed tubes (frusta, joint spheres) |
 
 use thiserror::Error;
@@ -40,6 +41,7 @@ pub mod select;
 pub(crate) mod side_table;
 pub mod skin;
 pub mod solidify;
+pub mod spin;
 pub mod split;
 pub mod subdivide;
 pub mod transform;

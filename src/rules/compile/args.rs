@@ -287,6 +287,12 @@ pub(super) fn typed(def: &'static OperatorDef, args: Vec<Arg>) -> OpArgs {
         OpId::Crease => OpArgs::Crease {
             sharpness: r.scalar("sharpness"),
         },
+        OpId::Spin => OpArgs::Spin {
+            angle: r.scalar("angle"),
+            steps: r.scalar("steps"),
+            axis: r.vector("axis"),
+            center: r.vector("center"),
+        },
         OpId::Solidify => OpArgs::Solidify {
             thickness: r.scalar("thickness"),
             offset: r.scalar("offset"),
