@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender fuzz fuzz-smoke clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender test-qhull fuzz fuzz-smoke clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -72,6 +72,14 @@ test-slurm:
 test-blender:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal tests/blender/run.sh
+
+## `convex_hull` against qhull (tests/qhull/run.sh: scipy.spatial.ConvexHull
+## on 10^4-10^5 random points and degenerate sets; a Python venv with numpy
+## and scipy from PyPI is made under target/ the first time, ~30 s). Not
+## part of `make test`; CI (`.ci/run`) runs it after.
+test-qhull:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal tests/qhull/run.sh
 
 ## Fuzz smoke (fuzz/smoke.sh): builds the libFuzzer targets (cargo-fuzz on
 ## stable, RUSTC_BOOTSTRAP=1), replays every committed regression and seed of

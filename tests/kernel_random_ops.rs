@@ -45,7 +45,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(30);
+    let choice = rng.below(31);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -256,6 +256,16 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                 );
             }
             "spin"
+        }
+        29 => {
+            if !big {
+                let _ = graftal::kernel::ops::hull::convex_hull(
+                    mesh,
+                    &some(rng, &verts, 12),
+                    rng.unit() < 0.5,
+                );
+            }
+            "convex_hull"
         }
         _ => {
             match rng.below(3) {

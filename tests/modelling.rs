@@ -1,5 +1,6 @@
 //! The modelling operators of issue 35 from rule files: `subdivide`,
-//! `crease`, `solidify`, `spin`. Their geometry is checked against Blender by
+//! `crease`, `solidify`, `spin`, `convex_hull` (against qhull:
+//! `tests/qhull`). Their geometry is checked against Blender by
 //! `tests/blender/` (`make test-blender`) and in the kernel's unit tests;
 //! here: the rule-file surface (parameters, parts and materials, located
 //! errors, determinism) and the documentation's pictures.
@@ -67,6 +68,43 @@ fn a_vase_profile_spins_into_a_closed_solid() {
     assert_eq!(s["mesh"]["watertight"], true);
     assert_eq!(s["mesh"]["consistently_oriented"], true);
     assert!(s["mesh"]["volume"].as_f64().unwrap() > 0.0, "wound outward");
+}
+
+#[test]
+fn a_hull_wraps_grown_geometry_and_flat_selections_are_errors() {
+    let d = tempfile::tempdir().unwrap();
+    // The stool of docs/operators/subdivide-cage.toml, wrapped: its seat's
+    // top corners and its legs' outer foot corners span a box, and the
+    // points on its sides and edges (exactly coplanar, collinear) are not
+    // hull vertices: 8 vertices, 6 quads.
+    let rules = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/operators/subdivide-cage.toml"),
+    )
+    .unwrap()
+        + "\n[[step]]\nconvex_hull = {}\nname = \"hull\"\n\
+           [[step]]\nfrom = \"hull\"\ninset_faces = { thickness = 0.01 }\n";
+    let s = stats(d.path(), &rules);
+    let hull = s["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|st| st["name"] == "hull")
+        .unwrap();
+    assert_eq!(hull["created_vertices"], 8, "{hull}");
+    assert_eq!(hull["created_faces"], 6, "{hull}");
+    // A flat selection: a located run-time error naming why.
+    std::fs::write(
+        d.path().join("flat.toml"),
+        "[start]\ngrid = { segments = [3, 3] }\n[[step]]\nconvex_hull = {}\n",
+    )
+    .unwrap();
+    let o = graftal_in(d.path(), &["run", "flat.toml", "-o", "flat.obj"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("flat.toml:4:1") && stderr(&o).contains("lie in one plane"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

@@ -9,6 +9,8 @@
 //! - [`boxes`]: conservative `f32` boxes around `f64` geometry (rounded
 //!   outward, so a broad phase never loses a candidate).
 //! - [`frame`]: orthonormal turtle frames and a deterministic perpendicular.
+//! - [`hull`]: convex hulls of points (Quickhull on exact predicates,
+//!   coplanar faces merged).
 //! - [`interval`]: interval arithmetic with a NaN flag (the linter judges
 //!   conditions with it).
 //! - [`indexed`]: [`IndexedMesh`], the neutral polygon mesh every reader
@@ -27,6 +29,7 @@ pub mod boxes;
 pub mod cells;
 pub mod edge_key;
 pub mod frame;
+pub mod hull;
 pub mod indexed;
 pub mod interval;
 pub mod material;

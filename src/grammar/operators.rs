@@ -241,6 +241,8 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         }
         // A copy of every corner's vertex, edge and face at most, and a rim
         // quad (two edges) per boundary edge.
+        // A hull of n points: n vertices, 3n − 6 edges, 2n − 4 faces at most.
+        OpArgs::ConvexHull { .. } => m(vert_count(), 6),
         // A copy of each profile vertex per step, a quad (and two edges)
         // per profile edge and step.
         OpArgs::Spin { steps, .. } => m(
@@ -603,6 +605,7 @@ pub(super) fn apply(
             };
             ops::solidify::solidify(mesh, &faces_list, options)?
         }
+        OpArgs::ConvexHull { triangulate } => ops::hull::convex_hull(mesh, &verts, *triangulate)?,
         OpArgs::Spin {
             angle,
             steps,

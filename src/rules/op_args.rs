@@ -243,6 +243,9 @@ pub enum OpArgs {
     Crease {
         sharpness: Scalar,
     },
+    ConvexHull {
+        triangulate: bool,
+    },
     Spin {
         angle: Scalar,
         steps: Scalar,

@@ -22,6 +22,7 @@
 //! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
 //! | [`solidify`] | a sheet into a closed shell (Blender's simple solidify: offset, even thickness, rim) |
 //! | [`spin`] | a lathe: edges swept into bands about an axis, vertices into arcs; seam and poles merged |
+//! | [`hull`] | convex hull of vertices as a new closed shell (exact, coplanar faces merged) |
 //! | [`skin`] | wire edges into closed tubes (frusta, joint spheres) |
 
 use thiserror::Error;
@@ -35,6 +36,7 @@ pub mod delete;
 pub mod extrude;
 pub mod faces;
 pub mod grid_fill;
+pub mod hull;
 pub mod inset;
 pub mod merge;
 pub mod select;
@@ -125,6 +127,10 @@ pub enum OpError {
     Kernel(#[from] KernelError),
     #[error("invalid parameter `{name}`: {reason}")]
     Parameter { name: &'static str, reason: String },
+    /// The selection has no result of the kind asked for (the convex hull
+    /// of coplanar points); the message says why.
+    #[error("{0}")]
+    Degenerate(String),
 }
 
 impl OpError {

@@ -287,6 +287,9 @@ pub(super) fn typed(def: &'static OperatorDef, args: Vec<Arg>) -> OpArgs {
         OpId::Crease => OpArgs::Crease {
             sharpness: r.scalar("sharpness"),
         },
+        OpId::ConvexHull => OpArgs::ConvexHull {
+            triangulate: r.flag("triangulate"),
+        },
         OpId::Spin => OpArgs::Spin {
             angle: r.scalar("angle"),
             steps: r.scalar("steps"),
