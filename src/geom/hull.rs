@@ -52,6 +52,10 @@ pub enum HullError {
 #[derive(Debug, Clone)]
 struct Face {
     v: [usize; 3],
+    /// `(b − a) × (c − a)` in float, and per component the sum of the
+    /// magnitudes of its two products: what the visibility filter needs.
+    normal: DVec3,
+    permanent: DVec3,
     /// The face across edge i (v[i] -> v[i + 1]).
     next: [usize; 3],
     outside: Vec<usize>,
@@ -91,12 +95,17 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
         };
         faces.push(Face {
             v,
+            normal: DVec3::ZERO,
+            permanent: DVec3::ZERO,
             next: [usize::MAX; 3],
             outside: Vec::new(),
             alive: true,
         });
     }
     link_all(&mut faces);
+    for face in &mut faces {
+        face.set_plane(points);
+    }
     for &i in &distinct {
         if simplex.contains(&i) {
             continue;
@@ -115,8 +124,7 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
             continue;
         }
         // The farthest outside point (float: it only chooses).
-        let [fa, fb, fc] = faces[f].v.map(p);
-        let normal = (fb - fa).cross(fc - fa);
+        let (fa, normal) = (p(faces[f].v[0]), faces[f].normal);
         let eye = *faces[f]
             .outside
             .iter()
@@ -157,10 +165,14 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
                 let new = faces.len();
                 faces.push(Face {
                     v: [s, t, eye],
+                    normal: DVec3::ZERO,
+                    permanent: DVec3::ZERO,
                     next: [n, usize::MAX, usize::MAX],
                     outside: Vec::new(),
                     alive: true,
                 });
+                let made = faces.len() - 1;
+                faces[made].set_plane(points);
                 mark.push(0);
                 let back = faces[n]
                     .v
@@ -241,10 +253,38 @@ fn initial_simplex(points: &[DVec3], distinct: &[usize]) -> Result<[usize; 4], H
     Ok([a, b, c, d])
 }
 
-/// Whether point `i` is strictly outside `face`'s plane.
+/// Whether point `i` is strictly outside `face`'s plane: exactly, as
+/// `orient3d(a, b, c, p) < 0`, decided in float when the float value
+/// `n · (p − a)` is farther from 0 than its rounding error can reach
+/// (Shewchuk's first-stage bound on the same cofactor expansion, taken
+/// with margin: 9 units in the last place of the permanent), else by the
+/// exact predicate. Most tests end in the filter.
 fn sees(points: &[DVec3], face: &Face, i: usize) -> bool {
+    let a = points[face.v[0]];
+    let d = points[i] - a;
+    let value = face.normal.dot(d);
+    let bound = 1.0e-15 * face.permanent.dot(d.abs());
+    if value > bound {
+        return true;
+    }
+    if value < -bound {
+        return false;
+    }
     let [a, b, c] = face.v.map(|v| points[v]);
     orient3d(a, b, c, points[i]) < 0.0
+}
+
+impl Face {
+    fn set_plane(&mut self, points: &[DVec3]) {
+        let [a, b, c] = self.v.map(|v| points[v]);
+        let (u, w) = (b - a, c - a);
+        self.normal = u.cross(w);
+        self.permanent = DVec3::new(
+            (u.y * w.z).abs() + (u.z * w.y).abs(),
+            (u.z * w.x).abs() + (u.x * w.z).abs(),
+            (u.x * w.y).abs() + (u.y * w.x).abs(),
+        );
+    }
 }
 
 /// Sets every face's neighbours from shared edges (the initial simplex).
