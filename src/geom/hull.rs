@@ -47,6 +47,10 @@ pub enum HullError {
     Collinear(usize),
     #[error("all {0} distinct points lie in one plane: their hull is a polygon, not a solid")]
     Coplanar(usize),
+    /// Points so far apart in magnitude (the smallest below 2^-900 of the
+    /// largest) that their products underflow and no predicate is exact.
+    #[error("the points' coordinates span too many orders of magnitude for an exact hull")]
+    Inexact,
 }
 
 #[derive(Debug, Clone)]
@@ -67,6 +71,30 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
     if let Some(i) = points.iter().position(|p| !p.is_finite()) {
         return Err(HullError::NonFinite(i));
     }
+    // Scaled by one power of two (exact, the hull's indices unchanged) so
+    // the largest coordinate is near 1: products of tiny coordinates would
+    // underflow, where no predicate is exact.
+    let largest = points
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max);
+    let scaled: Vec<DVec3>;
+    let points: &[DVec3] = if largest > 0.0 && !(1.0e-30..=1.0e30).contains(&largest) {
+        let shift = -libm::ilogb(largest);
+        scaled = points
+            .iter()
+            .map(|p| {
+                DVec3::new(
+                    libm::scalbn(p.x, shift),
+                    libm::scalbn(p.y, shift),
+                    libm::scalbn(p.z, shift),
+                )
+            })
+            .collect();
+        &scaled
+    } else {
+        points
+    };
     // Distinct positions, the first index of each.
     let mut order: Vec<usize> = (0..points.len()).collect();
     let key = |i: &usize| (points[*i].x, points[*i].y, points[*i].z, *i);
@@ -178,7 +206,7 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
                     .v
                     .iter()
                     .position(|&x| x == t)
-                    .expect("shared edge");
+                    .ok_or(HullError::Inexact)?;
                 faces[n].next[back] = new;
                 from.push((s, new));
             }
@@ -191,15 +219,14 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
             .collect();
         to.sort_unstable();
         let face_at = |list: &[(usize, usize)], v: usize| {
-            list[list
-                .binary_search_by_key(&v, |&(x, _)| x)
-                .expect("one horizon cycle")]
-            .1
+            list.binary_search_by_key(&v, |&(x, _)| x)
+                .map(|k| list[k].1)
+                .map_err(|_| HullError::Inexact)
         };
         for face in &mut faces[first_new..] {
             let [s, t, _] = face.v;
-            face.next[1] = face_at(&from, t);
-            face.next[2] = face_at(&to, s);
+            face.next[1] = face_at(&from, t)?;
+            face.next[2] = face_at(&to, s)?;
         }
         // The visible faces' points go to the new faces that see them.
         let mut orphans: Vec<usize> = Vec::new();
@@ -217,7 +244,7 @@ pub fn convex_hull(points: &[DVec3], merge_coplanar: bool) -> Result<Hull, HullE
         }
         work.extend((first_new..faces.len()).rev());
     }
-    Ok(finish(points, &faces, merge_coplanar))
+    finish(points, &faces, merge_coplanar)
 }
 
 /// Four points spanning a solid, the first of `distinct` among them.
@@ -302,7 +329,7 @@ fn link_all(faces: &mut [Face]) {
 }
 
 /// The living faces as the result: merged and cleaned, or as triangles.
-fn finish(points: &[DVec3], faces: &[Face], merge_coplanar: bool) -> Hull {
+fn finish(points: &[DVec3], faces: &[Face], merge_coplanar: bool) -> Result<Hull, HullError> {
     let p = |i: usize| points[i];
     let alive: Vec<usize> = (0..faces.len()).filter(|&f| faces[f].alive).collect();
     let merged: Vec<Vec<usize>> = {
@@ -315,7 +342,7 @@ fn finish(points: &[DVec3], faces: &[Face], merge_coplanar: bool) -> Hull {
                     .iter()
                     .copied()
                     .find(|v| !faces[f].v.contains(v))
-                    .expect("a neighbour has a third corner");
+                    .ok_or(HullError::Inexact)?;
                 if orient3d(a, b, c, p(opposite)) == 0.0 {
                     groups.union(f as u32, n as u32);
                 }
@@ -343,15 +370,19 @@ fn finish(points: &[DVec3], faces: &[Face], merge_coplanar: bool) -> Hull {
                 let mut ring = vec![edges[0].0];
                 let mut at = edges[0].1;
                 while at != ring[0] {
+                    // An outline visits each of its edges once.
+                    if ring.len() > edges.len() {
+                        return Err(HullError::Inexact);
+                    }
                     ring.push(at);
                     let k = edges
                         .binary_search_by_key(&at, |&(s, _)| s)
-                        .expect("closed outline");
+                        .map_err(|_| HullError::Inexact)?;
                     at = edges[k].1;
                 }
-                drop_straight_corners(points, ring)
+                Ok(drop_straight_corners(points, ring))
             })
-            .collect()
+            .collect::<Result<_, _>>()?
     };
     let mut polygons: Vec<Vec<usize>> = if merge_coplanar {
         merged
@@ -378,10 +409,10 @@ fn finish(points: &[DVec3], faces: &[Face], merge_coplanar: bool) -> Hull {
     let mut vertices: Vec<usize> = polygons.iter().flatten().copied().collect();
     vertices.sort_unstable();
     vertices.dedup();
-    Hull {
+    Ok(Hull {
         vertices,
         faces: polygons,
-    }
+    })
 }
 
 /// `ring` without the corners that lie exactly between their neighbours
@@ -476,6 +507,16 @@ mod tests {
         let v = hull.vertices.len() as i64;
         let e = (edges.len() / 2) as i64;
         assert_eq!(v - e + hull.faces.len() as i64, 2);
+    }
+
+    #[test]
+    fn tiny_and_huge_coordinates_give_the_same_hull() {
+        let points = lattice(4);
+        let want = convex_hull(&points, true).unwrap();
+        for scale in [1e-105, 1e-300, 1e200, 1e300] {
+            let scaled: Vec<DVec3> = points.iter().map(|&p| p * scale).collect();
+            assert_eq!(convex_hull(&scaled, true).unwrap(), want, "{scale}");
+        }
     }
 
     #[test]

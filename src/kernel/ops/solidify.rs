@@ -96,6 +96,25 @@ pub fn solidify(
         .collect();
     boundary.sort_unstable_by_key(|&(e, _, _)| e);
 
+    // Refused before anything is made: faces wound against each other
+    // (their normals cancel at a vertex, which would not move) and
+    // positions that overflow.
+    for &v in &verts {
+        if normal[&v] == DVec3::ZERO {
+            return Err(OpError::Degenerate(format!(
+                "solidify: the selected faces at vertex {} have no common side (they are                  wound against each other, or degenerate); make their winding consistent                  with `recompute_normals` first",
+                v.index()
+            )));
+        }
+        let p = mesh.position(v);
+        let along = normal[&v] * factor[&v];
+        if !(p + along * at_copy).is_finite() || !(p + along * at_original).is_finite() {
+            return Err(OpError::Degenerate(
+                "solidify: a new position overflows (coordinates or thickness near the limit of f64)"
+                    .into(),
+            ));
+        }
+    }
     let mut made = Selection::new();
     let mut copy_of: FxHashMap<VertId, VertId> = FxHashMap::default();
     for &v in &verts {

@@ -78,7 +78,13 @@ pub fn spin(
     if !options.center.is_finite() {
         return Err(OpError::parameter("center", "must be finite"));
     }
-    let Some(axis) = options.axis.try_normalize().filter(|a| a.is_finite()) else {
+    // Scaled by its largest component first, so that neither 1e200 nor
+    // 1e-200 overflows the length.
+    let largest = options.axis.abs().max_element();
+    let Some(axis) = (options.axis / largest)
+        .try_normalize()
+        .filter(|a| a.is_finite() && largest.is_finite())
+    else {
         return Err(OpError::parameter(
             "axis",
             "must be a finite, non-zero vector",
@@ -91,6 +97,12 @@ pub fn spin(
     let profile = into_canonical(profile);
     let steps = options.steps as usize;
     let full_turn = options.angle_degrees.abs() == 360.0;
+    if full_turn && steps < 3 {
+        return Err(OpError::parameter(
+            "steps",
+            format!("a full turn needs at least 3 steps, got {steps}"),
+        ));
+    }
     // Rings 1..=last are made; at a full turn the ring `steps` is ring 0.
     let last = if full_turn { steps - 1 } else { steps };
     let added = (profile.len() as u128) * last as u128;
@@ -113,6 +125,19 @@ pub fn spin(
         (d - axis * d.dot(axis)).length() <= 1e-12 * scale
     };
     let step = options.angle_degrees.to_radians() / options.steps as f64;
+    // Every ring position, checked before anything is made (a centre far
+    // from the profile can overflow `p − center`).
+    for k in 1..=last {
+        let turn = DQuat::from_axis_angle(axis, step * k as f64);
+        for &v in &profile {
+            let p = mesh.position(v);
+            if !(options.center + turn * (p - options.center)).is_finite() {
+                return Err(OpError::Degenerate(
+                    "spin: a new position overflows (coordinates near the limit of f64)".into(),
+                ));
+            }
+        }
+    }
     let mut made = Selection::new();
     // ring[k][i]: profile vertex i in ring k.
     let mut rings: Vec<Vec<VertId>> = vec![profile.clone()];
@@ -280,6 +305,7 @@ mod tests {
             (turn(400.0, 4), "angle"),
             (turn(f64::NAN, 4), "angle"),
             (turn(90.0, 0), "steps"),
+            (turn(360.0, 2), "steps"),
             (
                 Spin {
                     axis: DVec3::ZERO,

@@ -16,9 +16,10 @@
 //! The region's border (edges with one region face) is a boundary, edges
 //! with more than two region faces are non-manifold: both are infinitely
 //! sharp, as in OpenSubdiv. Faces outside the region that share a border
-//! edge gain its midpoint (they keep their shape: the midpoint of a sharp
-//! edge lies on it). Each new piece copies its face's attributes (parts,
-//! materials) through `split_face`.
+//! edge gain its midpoint, which lies on the edge; the border's vertices
+//! follow the crease rule, so a neighbour stays flat where the border is
+//! straight and bends with it where it curves. Each new piece copies its
+//! face's attributes (parts, materials) through `split_face`.
 //!
 //! Creases (OpenSubdiv "uniform" creasing): an edge's sharpness `s` makes
 //! its edge point `lerp(smooth, midpoint, min(s, 1))`; its two children
@@ -75,10 +76,14 @@ pub struct Subdivided {
     /// The faces that replace the region (the originals keep their ids as
     /// one of their pieces), the new vertices and the new edges.
     pub made: Selection,
-    /// Every final edge with sharpness left (`s − levels > 0`), ascending:
-    /// what a further subdivision reads.
+    /// Every final edge with sharpness left of `creases` (`s − levels > 0`;
+    /// an infinite crease as [`SHARPNESS_INFINITE`]), ascending: what a
+    /// further subdivision reads. Creases by angle are not included.
     pub creases: Vec<(EdgeId, f64)>,
 }
+
+/// The most levels one call refines (each multiplies the faces by about 4).
+pub const MAX_LEVELS: u32 = 8;
 
 /// The most elements (of each kind) one call may create: far past any
 /// mesh a run may make, and well inside the u32 id space.
@@ -96,6 +101,23 @@ pub fn subdivide(
     let mut region = canonical(faces);
     for &f in &region {
         mesh.check_face(f)?;
+    }
+    if !(1..=MAX_LEVELS).contains(&options.levels) {
+        return Err(OpError::parameter(
+            "levels",
+            format!("must lie in 1..={MAX_LEVELS}, got {}", options.levels),
+        ));
+    }
+    if let Some(angle) = options.crease_angle {
+        if !(angle.is_finite() && (0.0..=180.0).contains(&angle)) {
+            return Err(OpError::parameter(
+                "crease_angle",
+                format!("must lie in [0, 180] degrees, got {angle}"),
+            ));
+        }
+    }
+    if region.is_empty() {
+        return Ok(Subdivided::default());
     }
     if options.scheme == Scheme::Loop {
         let bad: Vec<FaceId> = region
@@ -133,11 +155,17 @@ pub fn subdivide(
         ));
     }
 
-    let mut sharp: FxHashMap<EdgeId, f64> = creases
+    // Per creased edge: (the sharpness the rules use, the part of it that
+    // came from `creases`, which is what is handed back; creases by angle
+    // are the caller's to recompute).
+    let mut sharp: FxHashMap<EdgeId, (f64, f64)> = creases
         .iter()
         .copied()
         .filter(|&(e, s)| s > 0.0 && mesh.contains_edge(e))
-        .map(|(e, s)| (e, if s >= SHARPNESS_INFINITE { INFINITE } else { s }))
+        .map(|(e, s)| {
+            let s = if s >= SHARPNESS_INFINITE { INFINITE } else { s };
+            (e, (s, s))
+        })
         .collect();
     if let Some(angle) = options.crease_angle {
         let in_region: FxHashSet<FaceId> = region.iter().copied().collect();
@@ -146,7 +174,7 @@ pub fn subdivide(
             for e in mesh.face_edges(f) {
                 if let [a, b] = region_faces(mesh, e, &in_region)[..] {
                     if mesh.face_normal(a).dot(mesh.face_normal(b)) < cos_limit {
-                        sharp.insert(e, INFINITE);
+                        sharp.entry(e).or_insert((0.0, 0.0)).0 = INFINITE;
                     }
                 }
             }
@@ -162,7 +190,11 @@ pub fn subdivide(
     }
     made.faces = region;
     made.normalize();
-    let mut creases: Vec<(EdgeId, f64)> = sharp.into_iter().collect();
+    let mut creases: Vec<(EdgeId, f64)> = sharp
+        .into_iter()
+        .filter(|&(_, (_, stored))| stored > 0.0)
+        .map(|(e, (_, stored))| (e, stored.min(SHARPNESS_INFINITE)))
+        .collect();
     creases.sort_unstable_by_key(|&(e, _)| e);
     Ok(Subdivided { made, creases })
 }
@@ -199,7 +231,7 @@ struct Level {
     faces: Vec<FaceId>,
     new_verts: Vec<VertId>,
     new_edges: Vec<EdgeId>,
-    sharp: FxHashMap<EdgeId, f64>,
+    sharp: FxHashMap<EdgeId, (f64, f64)>,
 }
 
 /// An infinitely sharp edge (boundaries, non-manifold edges, creases by
@@ -215,7 +247,7 @@ fn refine(
     mesh: &mut Mesh,
     region: &[FaceId],
     options: Subdivision,
-    sharp: &FxHashMap<EdgeId, f64>,
+    sharp: &FxHashMap<EdgeId, (f64, f64)>,
 ) -> Result<Level, OpError> {
     let in_region: FxHashSet<FaceId> = region.iter().copied().collect();
     // The region's edges and vertices, in canonical order.
@@ -233,7 +265,7 @@ fn refine(
             {
                 INFINITE
             } else {
-                sharp.get(&e).copied().unwrap_or(0.0)
+                sharp.get(&e).map_or(0.0, |s| s.0)
             };
             (e, s)
         })
@@ -278,11 +310,24 @@ fn refine(
         vert_point.insert(v, point);
     }
 
+    // Coordinates near the f64 limit can overflow in the sums: refuse
+    // before anything is made.
+    if edge_point
+        .values()
+        .chain(vert_point.values())
+        .chain(face_point.values())
+        .any(|p| !p.is_finite())
+    {
+        return Err(OpError::Degenerate(
+            "subdivide: a new position overflows (coordinates near the limit of f64)".into(),
+        ));
+    }
+
     // 2. Topology. Every region edge split at its middle; the children
     // inherit the sharpness less one.
     let mut new_verts = Vec::with_capacity(edges.len() + region.len());
     let mut new_edges = Vec::new();
-    let mut child_sharp: FxHashMap<EdgeId, f64> = FxHashMap::default();
+    let mut child_sharp: FxHashMap<EdgeId, (f64, f64)> = FxHashMap::default();
     let mut midpoints: FxHashSet<VertId> = FxHashSet::default();
     for &e in &edges {
         let (m, rest) = mesh.split_edge(e, 0.5)?;
@@ -290,10 +335,11 @@ fn refine(
         new_verts.push(m);
         new_edges.push(rest);
         midpoints.insert(m);
-        if let Some(&s) = sharp.get(&e) {
-            if s - 1.0 > 0.0 {
-                child_sharp.insert(e, s - 1.0);
-                child_sharp.insert(rest, s - 1.0);
+        if let Some(&(s, stored)) = sharp.get(&e) {
+            if s - 1.0 > 0.0 || stored - 1.0 > 0.0 {
+                let child = ((s - 1.0).max(0.0), (stored - 1.0).max(0.0));
+                child_sharp.insert(e, child);
+                child_sharp.insert(rest, child);
             }
         }
     }
@@ -405,9 +451,12 @@ fn vertex_point(
         .iter()
         .filter(|&&e| edge_sharpness[&e] == INFINITE && region_faces(mesh, e, in_region).len() != 2)
         .count();
-    // A boundary vertex of one face is a corner under EDGE_AND_CORNER.
+    // A boundary vertex of one face is a corner under EDGE_AND_CORNER; so
+    // is a vertex where fans of faces meet only at the vertex (two cones
+    // apex to apex), as OpenSubdiv makes non-manifold vertices.
     let corner =
-        options.boundary == Boundary::KeepCorners && boundary_edges > 0 && faces.len() == 1;
+        (options.boundary == Boundary::KeepCorners && boundary_edges > 0 && faces.len() == 1)
+            || fans(mesh, v, &faces, in_region) > 1;
     let parent = rule_of(sharpness.iter().filter(|&&s| s > 0.0).count(), corner);
     let child = rule_of(sharpness.iter().filter(|&&s| s - 1.0 > 0.0).count(), corner);
 
@@ -461,6 +510,28 @@ fn vertex_point(
     }
     let weight = (turning.iter().sum::<f64>() / turning.len() as f64).min(1.0);
     parent_point * weight + at(child, 1.0) * (1.0 - weight)
+}
+
+/// How many fans of `faces` (the region's faces at `v`) are joined
+/// through `v`'s edges that have two region faces: one on a manifold
+/// vertex, more where surfaces touch only at `v`.
+fn fans(mesh: &Mesh, v: VertId, faces: &[FaceId], in_region: &FxHashSet<FaceId>) -> usize {
+    if faces.len() <= 1 {
+        return faces.len();
+    }
+    let mut groups = crate::geom::union_find::UnionFind::new(faces.len());
+    let at = |f: FaceId| faces.binary_search(&f).ok();
+    for e in mesh.vert_edges(v) {
+        if let [a, b] = region_faces(mesh, e, in_region)[..] {
+            if let (Some(i), Some(j)) = (at(a), at(b)) {
+                groups.union(i as u32, j as u32);
+            }
+        }
+    }
+    let mut roots: Vec<u32> = (0..faces.len() as u32).map(|i| groups.find(i)).collect();
+    roots.sort_unstable();
+    roots.dedup();
+    roots.len()
 }
 
 /// The region's faces on edge `e`, ascending.
@@ -604,7 +675,7 @@ mod tests {
         )
         .unwrap();
         assert!((mesh.report().volume.unwrap() - 8.0).abs() < 1e-12);
-        assert!(done.creases.iter().all(|&(_, s)| s == f64::INFINITY));
+        assert!(done.creases.iter().all(|&(_, s)| s == SHARPNESS_INFINITE));
         assert_eq!(done.creases.len(), 12 * 4, "each cube edge in four pieces");
         // By angle: the same.
         let (mut mesh, faces) = cube();
@@ -614,6 +685,55 @@ mod tests {
         };
         subdivide(&mut mesh, &faces, by_angle, &[]).unwrap();
         assert!((mesh.report().volume.unwrap() - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn two_cones_touching_at_their_apex_keep_it_as_a_corner() {
+        // Two square pyramids (heights 1 and 2, so a smooth rule would move
+        // the apex), apex to apex at the origin: every edge has
+        // two faces, but the apex joins two fans; OpenSubdiv makes it a
+        // corner, so it stays where it is.
+        let mut mesh = Mesh::new();
+        let apex = mesh.make_vert(DVec3::ZERO);
+        for z in [1.0, -2.0] {
+            let base: Vec<VertId> = [(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)]
+                .iter()
+                .map(|&(x, y)| mesh.make_vert(DVec3::new(x, y, z)))
+                .collect();
+            for k in 0..4 {
+                let (a, b) = (base[k], base[(k + 1) % 4]);
+                let ring = if z > 0.0 { [apex, a, b] } else { [apex, b, a] };
+                mesh.make_face(&ring).unwrap();
+            }
+            let cap: Vec<VertId> = if z > 0.0 {
+                base.iter().rev().copied().collect()
+            } else {
+                base.clone()
+            };
+            mesh.make_face(&cap).unwrap();
+        }
+        let faces: Vec<FaceId> = mesh.face_ids().collect();
+        subdivide(&mut mesh, &faces, options(Scheme::CatmullClark, 2), &[]).unwrap();
+        mesh.validate().unwrap();
+        assert_eq!(mesh.position(apex), DVec3::ZERO);
+    }
+
+    #[test]
+    fn levels_outside_one_to_eight_are_refused_and_nothing_is_asked_of_nothing() {
+        let (mut mesh, faces) = cube();
+        for levels in [0, 9, u32::MAX] {
+            let err = subdivide(
+                &mut mesh,
+                &faces,
+                options(Scheme::CatmullClark, levels),
+                &[],
+            )
+            .unwrap_err();
+            assert!(matches!(err, OpError::Parameter { name: "levels", .. }));
+        }
+        let done = subdivide(&mut mesh, &[], options(Scheme::CatmullClark, 8), &[]).unwrap();
+        assert!(done.made.is_empty());
+        assert_eq!(mesh.vert_count(), 8);
     }
 
     #[test]
