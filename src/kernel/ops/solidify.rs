@@ -336,6 +336,35 @@ mod tests {
     }
 
     #[test]
+    fn cancelling_normals_and_overflowing_positions_are_refused() {
+        // Two triangles on one edge, wound against each other: at the
+        // shared vertices their normals cancel.
+        let mut mesh = Mesh::new();
+        let v: Vec<VertId> = [
+            DVec3::ZERO,
+            DVec3::X,
+            DVec3::new(0.5, 1.0, 0.0),
+            DVec3::new(0.5, -1.0, 0.0),
+        ]
+        .iter()
+        .map(|&p| mesh.make_vert(p))
+        .collect();
+        let a = mesh.make_face(&[v[0], v[1], v[2]]).unwrap();
+        let b = mesh.make_face(&[v[0], v[1], v[3]]).unwrap();
+        let err = solidify(&mut mesh, &[a, b], options(0.1, 0.0)).unwrap_err();
+        assert!(err.to_string().contains("recompute_normals"), "{err}");
+        assert_eq!(mesh.vert_count(), 4);
+        let (mut mesh, faces) = grid();
+        for v in mesh.vert_ids().collect::<Vec<_>>() {
+            let p = mesh.position(v);
+            mesh.set_position(v, p + DVec3::Z * 1e308);
+        }
+        let err = solidify(&mut mesh, &faces, options(1e308, 1.0)).unwrap_err();
+        assert!(err.to_string().contains("overflows"), "{err}");
+        assert_eq!(mesh.vert_count(), 25);
+    }
+
+    #[test]
     fn bad_parameters_are_refused_before_anything_is_made() {
         let (mut mesh, faces) = grid();
         for (t, o, name) in [(f64::NAN, 0.0, "thickness"), (0.1, 1.5, "offset")] {

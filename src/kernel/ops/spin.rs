@@ -308,6 +308,14 @@ mod tests {
             (turn(360.0, 2), "steps"),
             (
                 Spin {
+                    axis: DVec3::new(1e300, 0.0, 0.0),
+                    angle_degrees: f64::NAN,
+                    ..turn(90.0, 4)
+                },
+                "angle",
+            ),
+            (
+                Spin {
                     axis: DVec3::ZERO,
                     ..turn(90.0, 4)
                 },
@@ -320,6 +328,30 @@ mod tests {
                 "{err}"
             );
             assert_eq!(mesh.vert_count(), 2);
+        }
+        // A centre far from the profile overflows `p − center`.
+        let far = Spin {
+            center: DVec3::new(-1.5e308, 0.0, 0.0),
+            ..turn(90.0, 4)
+        };
+        let mut mesh = Mesh::new();
+        let edges = profile(
+            &mut mesh,
+            &[DVec3::new(1.5e308, 0.0, 0.0), DVec3::new(1.5e308, 0.0, 1.0)],
+        );
+        let err = spin(&mut mesh, &edges, &[], far).unwrap_err();
+        assert!(err.to_string().contains("overflows"), "{err}");
+        assert_eq!(mesh.vert_count(), 2);
+        // A huge or tiny axis is still a direction.
+        for scale in [1e300, 1e-300] {
+            let mut mesh = Mesh::new();
+            let edges = profile(&mut mesh, &[DVec3::X, DVec3::new(1.0, 0.0, 1.0)]);
+            let tilted = Spin {
+                axis: DVec3::Z * scale,
+                ..turn(90.0, 2)
+            };
+            spin(&mut mesh, &edges, &[], tilted).unwrap();
+            mesh.validate().unwrap();
         }
     }
 }

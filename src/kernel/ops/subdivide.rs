@@ -737,6 +737,24 @@ mod tests {
     }
 
     #[test]
+    fn overflowing_positions_are_refused_before_anything_is_made() {
+        let mut mesh = Mesh::new();
+        let v: Vec<VertId> = [
+            (1.5e308, 0.0),
+            (1.6e308, 0.0),
+            (1.6e308, 1.0),
+            (1.5e308, 1.0),
+        ]
+        .iter()
+        .map(|&(x, y)| mesh.make_vert(DVec3::new(x, y, 0.0)))
+        .collect();
+        let f = mesh.make_face(&v).unwrap();
+        let err = subdivide(&mut mesh, &[f], options(Scheme::CatmullClark, 1), &[]).unwrap_err();
+        assert!(err.to_string().contains("overflows"), "{err}");
+        assert_eq!((mesh.vert_count(), mesh.face_count()), (4, 1));
+    }
+
+    #[test]
     fn sharpness_is_spent_one_level_at_a_time() {
         let (mut mesh, faces) = cube();
         let e = mesh.edge_ids().next().unwrap();
