@@ -125,32 +125,34 @@ pub fn spin(
         (d - axis * d.dot(axis)).length() <= 1e-12 * scale
     };
     let step = options.angle_degrees.to_radians() / options.steps as f64;
-    // Every ring position, checked before anything is made (a centre far
-    // from the profile can overflow `p − center`).
+    // Every ring's positions, computed once and checked before anything
+    // is made (a centre far from the profile can overflow `p − center`).
+    let mut placed: Vec<Vec<DVec3>> = Vec::with_capacity(last);
     for k in 1..=last {
         let turn = DQuat::from_axis_angle(axis, step * k as f64);
-        for &v in &profile {
-            let p = mesh.position(v);
-            if !(options.center + turn * (p - options.center)).is_finite() {
-                return Err(OpError::Degenerate(
-                    "spin: a new position overflows (coordinates near the limit of f64)".into(),
-                ));
-            }
+        let ring: Vec<DVec3> = profile
+            .iter()
+            .map(|&v| options.center + turn * (mesh.position(v) - options.center))
+            .collect();
+        if ring.iter().any(|p| !p.is_finite()) {
+            return Err(OpError::Degenerate(
+                "spin: a new position overflows (coordinates near the limit of f64)".into(),
+            ));
         }
+        placed.push(ring);
     }
     let mut made = Selection::new();
     // ring[k][i]: profile vertex i in ring k.
     let mut rings: Vec<Vec<VertId>> = vec![profile.clone()];
-    for k in 1..=last {
-        let turn = DQuat::from_axis_angle(axis, step * k as f64);
+    for positions in &placed {
         let ring = profile
             .iter()
-            .map(|&v| {
-                let p = mesh.position(v);
-                if on_axis(p) {
+            .zip(positions)
+            .map(|(&v, &q)| {
+                if on_axis(mesh.position(v)) {
                     return v;
                 }
-                let c = mesh.make_vert(options.center + turn * (p - options.center));
+                let c = mesh.make_vert(q);
                 mesh.copy_vert_attrs(v, c);
                 made.verts.push(c);
                 c
