@@ -45,7 +45,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(31);
+    let choice = rng.below(33);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -266,6 +266,65 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                 );
             }
             "convex_hull"
+        }
+        30 => {
+            if !big {
+                // Faces' boundaries are closed loops (faces sharing a
+                // vertex are refused); random edges rarely form loops.
+                let chosen = if rng.below(2) == 0 {
+                    some(rng, &faces, 3)
+                        .into_iter()
+                        .flat_map(|f| mesh.face_edges(f).collect::<Vec<_>>())
+                        .collect()
+                } else {
+                    some(rng, &edges, 8)
+                };
+                let options = graftal::kernel::ops::bridge::Bridge {
+                    twist: rng.below(7) as i64 - 3,
+                    segments: 1 + rng.below(3) as u32,
+                };
+                let _ = graftal::kernel::ops::bridge::bridge_loops(mesh, &chosen, options);
+            }
+            "bridge_loops"
+        }
+        31 => {
+            if !big {
+                use graftal::kernel::ops::bevel::{Affect, Bevel, OffsetType};
+                let options = Bevel {
+                    width: 0.02 + 0.3 * rng.unit(),
+                    offset_type: [
+                        OffsetType::Offset,
+                        OffsetType::Width,
+                        OffsetType::Depth,
+                        OffsetType::Percent,
+                    ][rng.below(4)],
+                    segments: 1 + rng.below(4) as u32,
+                    profile: [0.5, 0.25, 0.8, 1.0][rng.below(4)],
+                    clamp_overlap: rng.below(4) != 0,
+                    affect: if rng.below(4) == 0 {
+                        Affect::Vertices
+                    } else {
+                        Affect::Edges
+                    },
+                };
+                let options = if options.affect == Affect::Vertices
+                    && matches!(options.offset_type, OffsetType::Width | OffsetType::Depth)
+                {
+                    Bevel {
+                        offset_type: OffsetType::Offset,
+                        ..options
+                    }
+                } else {
+                    options
+                };
+                let _ = graftal::kernel::ops::bevel::bevel(
+                    mesh,
+                    &some(rng, &edges, 6),
+                    &some(rng, &verts, 3),
+                    options,
+                );
+            }
+            "bevel"
         }
         _ => {
             match rng.below(3) {

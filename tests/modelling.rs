@@ -1,5 +1,5 @@
-//! The modelling operators of issue 35 from rule files: `subdivide`,
-//! `crease`, `solidify`, `spin`, `convex_hull` (against qhull:
+//! The modelling operators of issue 35 from rule files: `bevel`,
+//! `subdivide`, `crease`, `solidify`, `spin`, `bridge_loops`, `convex_hull` (against qhull:
 //! `tests/qhull`). Their geometry is checked against Blender by
 //! `tests/blender/` (`make test-blender`) and in the kernel's unit tests;
 //! here: the rule-file surface (parameters, parts and materials, located
@@ -52,6 +52,61 @@ fn subdivide_and_solidify_give_the_issues_counts() {
 }
 
 #[test]
+fn bevel_gives_the_issues_counts_and_keeps_parts_and_materials() {
+    let d = tempfile::tempdir().unwrap();
+    // A cube's 12 edges with 1 segment: 24, 48, 26, as Blender.
+    let chamfer = stats(
+        d.path(),
+        "[start]\ncube = { size = 2 }\n[[step]]\non = \"edges\"\nbevel = { width = 0.2 }\n",
+    );
+    assert_eq!(counts(&chamfer), (24, 48, 26));
+    assert_eq!(chamfer["mesh"]["watertight"], true);
+    assert_eq!(chamfer["mesh"]["consistently_oriented"], true);
+    let round = stats(
+        d.path(),
+        "[start]\ncube = { size = 2 }\n[[step]]\non = \"edges\"\nbevel = { width = 0.25, segments = 2 }\n",
+    );
+    assert_eq!(counts(&round), (56, 108, 54));
+    // Parts and materials: the top face's material stays on its
+    // replacement; the step's part names what it made.
+    let rules = r##"
+[start]
+cube = { size = 2 }
+
+[[step]]
+select = "normal.z > 0.5"
+assign = {}
+material = "red"
+
+[[step]]
+on = "edges"
+select = "center.z > 0.5"
+bevel = { width = 0.3, segments = 3 }
+part = "rounded"
+
+[materials.red]
+base_color = "#ff0000"
+"##;
+    std::fs::write(d.path().join("m.toml"), rules).unwrap();
+    let o = graftal_in(d.path(), &["run", "m.toml", "-o", "m.obj"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let obj = std::fs::read_to_string(d.path().join("m.obj")).unwrap();
+    assert!(obj.contains("usemtl red"), "{obj}");
+    assert!(
+        obj.lines().any(|l| l == "g rounded" || l == "o rounded"),
+        "{obj}"
+    );
+    // 6 faces, 4 bands of 3, no corner faces (two bands share a profile).
+    assert_eq!(obj.lines().filter(|l| l.starts_with("f ")).count(), 6 + 12);
+    // Vertices cut off: a cube's 8 corners give 24 vertices and 14 faces.
+    let cut = stats(
+        d.path(),
+        "[start]\ncube = { size = 2 }\n[[step]]\non = \"vertices\"\nbevel = { width = 0.4 }\n",
+    );
+    assert_eq!((counts(&cut).0, counts(&cut).2), (24, 14));
+}
+
+#[test]
 fn a_vase_profile_spins_into_a_closed_solid() {
     let d = tempfile::tempdir().unwrap();
     std::fs::write(
@@ -68,6 +123,112 @@ fn a_vase_profile_spins_into_a_closed_solid() {
     assert_eq!(s["mesh"]["watertight"], true);
     assert_eq!(s["mesh"]["consistently_oriented"], true);
     assert!(s["mesh"]["volume"].as_f64().unwrap() > 0.0, "wound outward");
+}
+
+/// An OBJ of wire loops: for each `(n, radius, z, closed)`, `n` points on
+/// a circle (or the first `n` of 12 on it, open).
+fn loops_obj(loops: &[(usize, f64, f64, bool)]) -> String {
+    let (mut vs, mut ls, mut base) = (String::new(), String::new(), 0);
+    for &(n, r, z, closed) in loops {
+        let step = if closed { n } else { 12 };
+        for i in 0..n {
+            let a = std::f64::consts::TAU * i as f64 / step as f64;
+            vs += &format!("v {} {} {z}\n", r * a.cos(), r * a.sin());
+        }
+        let sides = if closed { n } else { n - 1 };
+        for i in 0..sides {
+            ls += &format!("l {} {}\n", base + i + 1, base + (i + 1) % n + 1);
+        }
+        base += n;
+    }
+    vs + &ls
+}
+
+#[test]
+fn bridge_loops_join_loops_with_twist_segments_and_unequal_counts() {
+    let d = tempfile::tempdir().unwrap();
+    let run = |obj: &str, args: &str| {
+        std::fs::write(d.path().join("loops.obj"), obj).unwrap();
+        stats(
+            d.path(),
+            &format!(
+                "[start]\nimport = {{ path = \"loops.obj\" }}\n\
+                 [[step]]\non = \"edges\"\nbridge_loops = {args}\npart = \"band\"\n"
+            ),
+        )
+    };
+    // 8 and 12 vertices: 8 quads and 4 triangles, 12 rungs; an open tube.
+    let unequal = loops_obj(&[(8, 1.0, 0.0, true), (12, 1.5, 1.0, true)]);
+    let s = run(&unequal, "{}");
+    assert_eq!(counts(&s), (20, 20 + 12, 12));
+    assert_eq!(s["mesh"]["triangles"], 8 * 2 + 4);
+    assert_eq!(s["mesh"]["manifold"], true);
+    assert_eq!(s["mesh"]["consistently_oriented"], true);
+    assert_eq!(s["mesh"]["boundary_edges"], 20);
+    // Three faces across: two rings of 12 between, three times the faces.
+    let s = run(&unequal, "{ segments = 3 }");
+    assert_eq!(counts(&s), (20 + 24, 20 + 24 + 36, 36));
+    assert_eq!(s["mesh"]["manifold"], true);
+    // Equal hexagons one above the other: untwisted, the band is six unit
+    // squares; a twist turns every quad.
+    let hexagons = loops_obj(&[(6, 1.0, 0.0, true), (6, 1.0, 1.0, true)]);
+    let straight = run(&hexagons, "{}");
+    assert!((straight["mesh"]["area"].as_f64().unwrap() - 6.0).abs() < 1e-9);
+    for twist in ["1", "-1", "\"1 + 1\""] {
+        let s = run(&hexagons, &format!("{{ twist = {twist} }}"));
+        assert_eq!(counts(&s), (12, 18, 6));
+        let area = s["mesh"]["area"].as_f64().unwrap();
+        assert!((area - 6.0).abs() > 0.1, "twist {twist}: {area}");
+    }
+    // Open chains pair end to end.
+    let open = loops_obj(&[(4, 1.0, 0.0, false), (4, 1.0, 1.0, false)]);
+    let s = run(&open, "{ segments = 2 }");
+    assert_eq!(counts(&s), (12, 17, 6));
+    // The documentation's vase: 12, 8 and 12 vertices chained in order.
+    let vase = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/operators/bridge-vase.toml"),
+    )
+    .unwrap();
+    let s = stats(d.path(), &vase);
+    assert_eq!(counts(&s), (56, 104, 48));
+    assert_eq!(s["mesh"]["manifold"], true);
+    assert_eq!(s["mesh"]["consistently_oriented"], true);
+
+    // Refusals, located at the step, with no output.
+    for (obj, args, words) in [
+        (
+            loops_obj(&[(8, 1.0, 0.0, true)]),
+            "{}",
+            "at least two loops of selected edges, found 1",
+        ),
+        (
+            loops_obj(&[(8, 1.0, 0.0, true), (4, 1.0, 1.0, false)]),
+            "{}",
+            "all closed or all open",
+        ),
+        (
+            loops_obj(&[(8, 1.0, 0.0, true), (8, 1.0, 1.0, true)]) + "v 0 0 -1\nl 1 17\n",
+            "{}",
+            "simple chains or loops",
+        ),
+        (hexagons.clone(), "{ twist = 0.5 }", "twist"),
+        (hexagons.clone(), "{ segments = \"0\" }", "segments"),
+    ] {
+        std::fs::write(d.path().join("loops.obj"), &obj).unwrap();
+        std::fs::write(
+            d.path().join("b.toml"),
+            format!(
+                "[start]\nimport = {{ path = \"loops.obj\" }}\n\
+                 [[step]]\non = \"edges\"\nbridge_loops = {args}\n"
+            ),
+        )
+        .unwrap();
+        let o = graftal_in(d.path(), &["run", "b.toml", "-o", "b.obj"]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args}: {err}");
+        assert!(err.contains("b.toml:5:1") && err.contains(words), "{err}");
+        assert!(!d.path().join("b.obj").exists());
+    }
 }
 
 #[test]
@@ -198,6 +359,38 @@ fn bad_uses_are_located_errors_with_no_output() {
     ] {
         common::assert_located_error(d.path(), text, "rules.toml:4:", words);
     }
+    for (text, words) in [
+        (
+            "[start]\ncube = {}\n[[step]]\non = \"edges\"\nbevel = { width = 0.1, segments = 0 }\n",
+            "segments",
+        ),
+        (
+            "[start]\ncube = {}\n[[step]]\non = \"edges\"\nbevel = { width = 0.1, profile = 1.5 }\n",
+            "profile",
+        ),
+        (
+            "[start]\ncube = {}\n[[step]]\non = \"edges\"\nbevel = { width = 0.1, offset_type = \"miter\" }\n",
+            "offset_type",
+        ),
+        ("[start]\ncube = {}\n[[step]]\non = \"edges\"\nbevel = {}\n", "width"),
+    ] {
+        common::assert_located_error(d.path(), text, "rules.toml:5:", words);
+    }
+    // Found at run time: a vertex bevel measured across a band, located
+    // at the step, and nothing written.
+    std::fs::write(
+        d.path().join("v.toml"),
+        "[start]\ncube = {}\n[[step]]\non = \"vertices\"\nbevel = { width = 0.1, offset_type = \"width\" }\n",
+    )
+    .unwrap();
+    let o = graftal_in(d.path(), &["run", "v.toml", "-o", "v.obj"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("v.toml:5:1") && stderr(&o).contains("offset_type"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.path().join("v.obj").exists());
     // Found at run time: Loop on quads, located at the step.
     std::fs::write(
         d.path().join("q.toml"),
@@ -247,6 +440,9 @@ fn the_documentation_pictures_rule_files_run() {
         assert!(dir.join(&png).exists(), "{path}: no {png}");
     }
     for shell in [
+        "bevel-chamfer",
+        "bevel-round",
+        "bevel-top",
         "subdivide-smooth",
         "subdivide-creased",
         "solidify-shell",

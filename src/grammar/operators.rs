@@ -18,7 +18,7 @@ use crate::kernel::ops::{self, Selection};
 use crate::kernel::{AttrValue, Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::expr::Expr;
 use crate::rules::op_args::{
-    Adjacency, Axis, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod, SubdivisionBoundary,
+    Adjacency, Axis, BevelOffset, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod, SubdivisionBoundary,
     SubdivisionScheme, UpAxis,
 };
 use crate::rules::operators::Reads;
@@ -249,6 +249,20 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
             n(steps),
             m(vert_count(), 2).saturating_add(m(edge_count(), 3)),
         ),
+        // Per selected edge and segment: a face, two edges and a vertex at
+        // most (a shorter loop's vertices pair with the longer one's, never
+        // more than all the selected edges' vertices).
+        OpArgs::BridgeLoops { segments, .. } => m(n(segments), m(edge_count(), 4)),
+        // Per beveled edge: two profiles of segments + 1 points and a band
+        // of segments faces; per vertex a corner grid of about segments²
+        // faces (each face at most a vertex and two edges).
+        OpArgs::Bevel { segments, .. } => {
+            let s = n(segments).saturating_add(1);
+            m(
+                s.saturating_mul(s),
+                m(edge_count().saturating_add(vert_count()), 8),
+            )
+        }
         OpArgs::Solidify { .. } => m(
             sel.by_domain
                 .faces
@@ -605,6 +619,33 @@ pub(super) fn apply(
             };
             ops::solidify::solidify(mesh, &faces_list, options)?
         }
+        OpArgs::Bevel {
+            width,
+            offset_type,
+            segments,
+            profile,
+            clamp_overlap,
+        } => {
+            use ops::bevel::{Affect, Bevel, OffsetType};
+            let options = Bevel {
+                width: s(width),
+                offset_type: match offset_type {
+                    BevelOffset::Offset => OffsetType::Offset,
+                    BevelOffset::Width => OffsetType::Width,
+                    BevelOffset::Depth => OffsetType::Depth,
+                    BevelOffset::Percent => OffsetType::Percent,
+                },
+                segments: ctx.count(segments, "segments")?,
+                profile: s(profile),
+                clamp_overlap: *clamp_overlap,
+                affect: if ctx.domain == Domain::Vert {
+                    Affect::Vertices
+                } else {
+                    Affect::Edges
+                },
+            };
+            ops::bevel::bevel(mesh, &by_domain.edges, &by_domain.verts, options)?
+        }
         OpArgs::ConvexHull { triangulate } => ops::hull::convex_hull(mesh, &verts, *triangulate)?,
         OpArgs::Spin {
             angle,
@@ -619,6 +660,21 @@ pub(super) fn apply(
                 center: v(center),
             };
             ops::spin::spin(mesh, &by_domain.edges, &by_domain.verts, options)?
+        }
+        OpArgs::BridgeLoops { twist, segments } => {
+            let twist = s(twist);
+            if !(twist.is_finite() && twist.fract() == 0.0 && twist.abs() <= 1e15) {
+                return Err(ops::OpError::parameter(
+                    "twist",
+                    format!("must be a whole number of places, got {twist}"),
+                )
+                .into());
+            }
+            let options = ops::bridge::Bridge {
+                twist: twist as i64,
+                segments: ctx.count(segments, "segments")?,
+            };
+            ops::bridge::bridge_loops(mesh, &by_domain.edges, options)?
         }
         OpArgs::Crease { sharpness } => {
             let value = AttrValue::Scalar(s(sharpness));

@@ -102,6 +102,10 @@ choice!(
 );
 
 choice!(
+    /// How `bevel`'s `width` is measured (Blender's offset types).
+    BevelOffset { Offset = "offset", Width = "width", Depth = "depth", Percent = "percent" }
+);
+choice!(
     /// `subdivide`'s refinement rules.
     SubdivisionScheme { CatmullClark = "catmull_clark", Simple = "simple", Loop = "loop" }
 );
@@ -251,6 +255,17 @@ pub enum OpArgs {
         steps: Scalar,
         axis: Vector,
         center: Vector,
+    },
+    BridgeLoops {
+        twist: Scalar,
+        segments: Scalar,
+    },
+    Bevel {
+        width: Scalar,
+        offset_type: BevelOffset,
+        segments: Scalar,
+        profile: Scalar,
+        clamp_overlap: bool,
     },
     Solidify {
         thickness: Scalar,

@@ -10,9 +10,9 @@
 use crate::kernel::Domain;
 
 use super::op_args::{
-    Adjacency, Axis, BooleanOp, ChoiceArg, Combine, DeleteKind, EdgeTestName, GridKind, Mesher,
-    PnPattern, SkinMethod, SubdivisionBoundary, SubdivisionScheme, TessMode, UpAxis,
-    VertexPlacement,
+    Adjacency, Axis, BevelOffset, BooleanOp, ChoiceArg, Combine, DeleteKind, EdgeTestName,
+    GridKind, Mesher, PnPattern, SkinMethod, SubdivisionBoundary, SubdivisionScheme, TessMode,
+    UpAxis, VertexPlacement,
 };
 
 /// Every operator, by identity (the engine's dispatch is a `match` on it).
@@ -40,7 +40,9 @@ pub enum OpId {
     Subdivide,
     Crease,
     Solidify,
+    Bevel,
     Spin,
+    BridgeLoops,
     ConvexHull,
     Reverse,
     RecomputeNormals,
@@ -923,6 +925,52 @@ pub static OPERATORS: &[OperatorDef] = &[
         summary: "give faces thickness: a closed shell with rims (Blender's simple solidify)",
     },
     OperatorDef {
+        id: OpId::Bevel,
+        name: "bevel",
+        family: Family::Kernel,
+        domains: &[Edge, Vert],
+        params: &[
+            required("width", Scalar, "how much to cut, measured as `offset_type` says"),
+            param(
+                "offset_type",
+                Choice(BevelOffset::NAMES),
+                Default::Choice(0),
+                "\"offset\" (from the edge to each new edge, default), \"width\" (across the band), \"depth\" (from the edge to the band) or \"percent\" (of the adjacent edges' lengths)",
+            ),
+            ParamDef {
+                key: "segments",
+                kind: Scalar,
+                default: Default::Number(1.0),
+                required: false,
+                min: Some(1.0),
+                above: None,
+                max: Some(1000.0),
+                doc: "faces across each band, 1 to 1000 (1)",
+            },
+            ParamDef {
+                key: "profile",
+                kind: Scalar,
+                default: Default::Number(0.5),
+                required: false,
+                min: None,
+                above: Some(0.0),
+                max: Some(1.0),
+                doc: "shape across the band: 0.5 round (default), 0.25 straight, 1 square",
+            },
+            param(
+                "clamp_overlap",
+                Bool,
+                Default::Bool(true),
+                "scale the width down so that no new corner passes another (true)",
+            ),
+        ],
+        exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ width = 0.05, segments = 3 }",
+        summary: "bevel edges (or vertices) into rounded or chamfered bands, as Blender's bevel",
+    },
+    OperatorDef {
         id: OpId::Spin,
         name: "spin",
         family: Family::Kernel,
@@ -943,6 +991,32 @@ pub static OPERATORS: &[OperatorDef] = &[
         tags: true,
         example: "{ angle = 90, steps = 4 }",
         summary: "lathe: sweep edges into bands (vertices into arcs) about an axis; seam and poles merged",
+    },
+    OperatorDef {
+        id: OpId::BridgeLoops,
+        name: "bridge_loops",
+        family: Family::Kernel,
+        domains: &[Edge],
+        params: &[
+            param(
+                "twist",
+                Scalar,
+                Default::Number(0.0),
+                "whole places the pairing of closed loops is turned past the best one (0)",
+            ),
+            at_least(
+                "segments",
+                Scalar,
+                Default::Number(1.0),
+                1.0,
+                "faces across each band (1)",
+            ),
+        ],
+        exclusive: &[],
+        reads: Reads::Selection,
+        tags: true,
+        example: "{ twist = 1, segments = 4 }",
+        summary: "join two or more selected edge loops, in order, by bands of quads (Blender's bridge_loops)",
     },
     OperatorDef {
         id: OpId::ConvexHull,

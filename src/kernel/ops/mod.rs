@@ -18,10 +18,12 @@
 //! | [`extrude`] | extrude verts, edges, faces (individual), face region |
 //! | [`inset`] | inset faces (individual), inset region |
 //! | [`split`] | split edges (cuts, ratios) |
+//! | [`bevel`] | bevel edges or vertices (Blender's offsets, superellipse profile, segments, clamp overlap) |
 //! | [`subdivide`] | Catmull–Clark, simple and Loop subdivision (OpenSubdiv rules, creases) |
 //! | [`faces`] | make face from edges, triangulate, reverse, recompute normals |
 //! | [`solidify`] | a sheet into a closed shell (Blender's simple solidify: offset, even thickness, rim) |
 //! | [`spin`] | a lathe: edges swept into bands about an axis, vertices into arcs; seam and poles merged |
+//! | [`bridge`] | edge loops joined in order by bands of quads (twist, segments, unequal counts as Blender) |
 //! | [`hull`] | convex hull of vertices as a new closed shell (exact, coplanar faces merged) |
 //! | [`skin`] | wire edges into closed tubes (frusta, joint spheres) |
 
@@ -30,6 +32,8 @@ use thiserror::Error;
 use super::euler::KernelError;
 use super::ids::{EdgeId, FaceId, SlotId, VertId};
 
+pub mod bevel;
+pub mod bridge;
 pub mod coincide;
 pub mod create;
 pub mod delete;

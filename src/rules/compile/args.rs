@@ -296,6 +296,17 @@ pub(super) fn typed(def: &'static OperatorDef, args: Vec<Arg>) -> OpArgs {
             axis: r.vector("axis"),
             center: r.vector("center"),
         },
+        OpId::BridgeLoops => OpArgs::BridgeLoops {
+            twist: r.scalar("twist"),
+            segments: r.scalar("segments"),
+        },
+        OpId::Bevel => OpArgs::Bevel {
+            width: r.scalar("width"),
+            offset_type: r.choice("offset_type"),
+            segments: r.scalar("segments"),
+            profile: r.scalar("profile"),
+            clamp_overlap: r.flag("clamp_overlap"),
+        },
         OpId::Solidify => OpArgs::Solidify {
             thickness: r.scalar("thickness"),
             offset: r.scalar("offset"),
