@@ -4,8 +4,10 @@
 
 SITE is the bench venv's site-packages (Debian's Blender has no numpy).
 OP ARGS is one of: merge soup.npz | selfx selfx.npz | grid N | inset N T |
-extrude N | triangulate N | mirror N. Grids have N × N cells of 0.01
-(bmesh's `size` is half the extent). Blender stores float32 coordinates.
+extrude N | triangulate N | mirror N | subdivide CAGE LEVELS | hull POINTS.npy |
+suzanne OUT.obj (writes the subdivide workload's cage, untimed). Grids have
+N × N cells of 0.01 (bmesh's `size` is half the extent); CAGE is an OBJ or
+`gridN`. Blender stores float32 coordinates.
 """
 
 import os
@@ -119,6 +121,77 @@ def mirror(n):
     report(seconds, bm)
 
 
+def write_obj(me, path):
+    """Exact coordinates (repr of the float32 values), 1-based faces."""
+    with open(path, "w") as f:
+        for v in me.vertices:
+            f.write("v %r %r %r\n" % tuple(v.co))
+        for p in me.polygons:
+            f.write("f " + " ".join(str(i + 1) for i in p.vertices) + "\n")
+
+
+def suzanne(out):
+    """Blender's monkey (500 faces, 507 vertices) as OBJ: the subdivide cage."""
+    bpy.ops.mesh.primitive_monkey_add()
+    write_obj(bpy.context.active_object.data, out)
+
+
+def read_obj(path):
+    verts, faces = [], []
+    with open(path) as f:
+        for line in f:
+            if line.startswith("v "):
+                verts.append(tuple(float(x) for x in line.split()[1:4]))
+            elif line.startswith("f "):
+                faces.append([int(x.split("/")[0]) - 1 for x in line.split()[1:]])
+    return verts, faces
+
+
+def subdivide(cage, levels):
+    """The subdivision-surface modifier (OpenSubdiv, Catmull–Clark) applied:
+    limit surface off, boundary "Keep Corners", as graftal's default. CAGE
+    is an OBJ or `gridN` (bmesh's grid of N × N cells). Timed: the modifier
+    apply (evaluation and the write-back into the object's mesh)."""
+    me = bpy.data.meshes.new("cage")
+    if cage.startswith("grid"):
+        bm = grid(int(cage[4:]))
+        bm.to_mesh(me)
+        bm.free()
+    else:
+        verts, faces = read_obj(cage)
+        me.from_pydata(verts, [], faces)
+    me.update()
+    obj = bpy.data.objects.new("cage", me)
+    bpy.context.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    mod = obj.modifiers.new("subsurf", "SUBSURF")
+    mod.subdivision_type = "CATMULL_CLARK"
+    mod.levels = int(levels)
+    mod.use_limit_surface = False
+    mod.boundary_smooth = "PRESERVE_CORNERS"
+    seconds, _ = timed(bpy.ops.object.modifier_apply, modifier=mod.name)
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    emit(seconds, len(me.vertices), len(me.polygons), sum_abs=float(np.abs(co.astype(np.float64)).sum()))
+
+
+def hull(path):
+    """`bmesh.ops.convex_hull` of loose vertices; the points it leaves
+    inside or unused are deleted after the timing, so the counts are the
+    hull's (its faces are triangles)."""
+    points = np.load(path)
+    me = bpy.data.meshes.new("points")
+    me.vertices.add(len(points))
+    me.vertices.foreach_set("co", points.astype(np.float32).ravel())
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    seconds, out = timed(bmesh.ops.convex_hull, bm, input=bm.verts[:])
+    inside = list({v for v in out["geom_interior"] + out["geom_unused"] if isinstance(v, bmesh.types.BMVert)})
+    bmesh.ops.delete(bm, geom=inside, context="VERTS")
+    report(seconds, bm)
+
+
 OPS = {
     "merge": merge,
     "selfx": selfx,
@@ -127,6 +200,10 @@ OPS = {
     "extrude": extrude,
     "triangulate": triangulate,
     "mirror": mirror,
+    "suzanne": suzanne,
+    "subdivide": subdivide,
+    "hull": hull,
+    # "bevel": a later row (bmesh.ops.bevel beside graftal's `bevel` step) goes here.
 }
 
 if __name__ == "__main__":

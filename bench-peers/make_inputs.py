@@ -2,9 +2,12 @@
 
     python make_inputs.py DIR
 
-Deterministic: the soup's jitter comes from numpy's seeded RNG, the
-icospheres from trimesh.creation. Each mesh is written as binary PLY (for
-graftal), .npz (for the Python peers) and, for CGAL, OFF.
+Deterministic: the soup's jitter and the hull's random points come from
+numpy's seeded RNG, the icospheres from trimesh.creation. Each mesh is
+written as binary PLY (for graftal), .npz (for the Python peers) and, for
+CGAL, OFF; the hull's point sets as PLY (vertices only) and .npy. The
+subdivide workload's cage (Blender's Suzanne) is written by run.py through
+Blender, not here.
 """
 
 import sys
@@ -15,6 +18,7 @@ import trimesh
 
 SEED = 17
 SOUP_CELLS, SOUP_SPACING, SOUP_JITTER = 408, 0.01, 1e-6
+HULL_KINDS, HULL_SIZES = ("ball", "sphere"), (10_000, 100_000, 1_000_000)
 
 
 def grid(nx, ny, spacing):
@@ -47,6 +51,17 @@ def selfx():
     verts = np.vstack([big.vertices, small.vertices + [0.9, 0.0, 0.0]])
     faces = np.vstack([big.faces, small.faces + len(big.vertices)])
     return verts, faces
+
+
+def hull_points(kind, n):
+    """n points uniform in the unit ball (most inside the hull) or on the
+    unit sphere (every one a hull vertex), as tests/qhull/hull.py draws them."""
+    rng = np.random.default_rng([SEED, HULL_KINDS.index(kind), n])
+    points = rng.normal(size=(n, 3))
+    points /= np.linalg.norm(points, axis=1)[:, None]
+    if kind == "ball":
+        points *= (rng.random(n) ** (1 / 3))[:, None]
+    return points
 
 
 def write_ply(path, verts, faces):
@@ -83,6 +98,11 @@ def main(out):
     np.savez(out / "quads300.npz", vertices=verts, faces=quads)
     verts, quads = grid(500, 1000, 0.01)
     np.savez(out / "tri1m.npz", vertices=verts, faces=triangles(quads))
+    for kind in HULL_KINDS:
+        for n in HULL_SIZES:
+            points = hull_points(kind, n)
+            write_ply(out / f"{kind}{n}.ply", points, np.empty((0, 3), int))
+            np.save(out / f"{kind}{n}.npy", points)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """graftal beside its peers on the same inputs: medians, ratios, agreement.
 
     GRAFTAL=target/release/graftal python3 bench-peers/run.py [--runs N]
-        [--only merge,glb,...] [--peers bmesh,libigl,...] [--with-occt] [--slow]
+        [--only merge,glb,...] [--peers bmesh,libigl,qhull,...] [--with-occt] [--slow]
         [--baseline OLD_GRAFTAL]
 
 Started by any python3, it sets up target/bench-peers/ (venv, Blender,
@@ -40,9 +40,9 @@ GRAFTAL = Path(os.environ.get("GRAFTAL", ROOT / "target" / "release" / "graftal"
 RUNNING = [GRAFTAL]
 CRITERION = Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / "criterion"
 
-PACKAGES = ["numpy", "trimesh", "libigl", "cgal", "geomdl", "splinepy"]
-MODULES = ["numpy", "trimesh", "igl", "CGAL", "geomdl", "splinepy"]
-PEERS = ["libigl", "trimesh", "cgal", "bmesh", "geomdl", "splinepy", "occt", "curvo"]
+PACKAGES = ["numpy", "scipy", "trimesh", "libigl", "cgal", "geomdl", "splinepy"]
+MODULES = ["numpy", "scipy", "trimesh", "igl", "CGAL", "geomdl", "splinepy"]
+PEERS = ["libigl", "trimesh", "cgal", "bmesh", "qhull", "geomdl", "splinepy", "occt", "curvo"]
 DISTRIBUTIONS = {
     "trimesh": "trimesh",
     "libigl": "libigl",
@@ -50,8 +50,18 @@ DISTRIBUTIONS = {
     "geomdl": "geomdl",
     "splinepy": "splinepy",
     "occt": "cadquery-ocp",
+    "qhull": "scipy",
 }
-INPUT_FILES = ["soup.ply", "soup.npz", "selfx.ply", "selfx.npz", "selfx.off", "quads300.npz", "tri1m.npz"]
+# The hull workload's point sets (make_inputs.py's HULL_KINDS × HULL_SIZES).
+HULL_SETS = [(kind, n) for kind in ("ball", "sphere") for n in (10_000, 100_000, 1_000_000)]
+INPUT_FILES = ["soup.ply", "soup.npz", "selfx.ply", "selfx.npz", "selfx.off", "quads300.npz", "tri1m.npz"] + [
+    f"{kind}{n}.{ext}" for kind, n in HULL_SETS for ext in ("ply", "npy")
+]
+# The subdivide workload: (cage, levels). `suzanne` is Blender's monkey
+# (500 faces), written as OBJ by Blender into the inputs (not committed);
+# `gridN` an N × N grid of 0.01 cells. Outputs from 7,872 to 1,000,000 faces.
+SUBDIVIDE_CASES = [("suzanne", 2), ("suzanne", 3), ("suzanne", 4), ("suzanne", 5), ("grid250", 2)]
+SUZANNE = "suzanne.obj"
 
 
 # ---------------------------------------------------------------- set-up
@@ -111,13 +121,16 @@ def make_inputs():
     if not all((INPUTS / f).exists() for f in INPUT_FILES):
         print("writing inputs to " + str(INPUTS), file=sys.stderr)
         subprocess.run([str(PYTHON), str(HERE / "make_inputs.py"), str(INPUTS)], check=True)
+    if shutil.which("blender") and not (INPUTS / SUZANNE).exists():
+        print("writing Blender's Suzanne to " + str(INPUTS / SUZANNE), file=sys.stderr)
+        spawn(blender("suzanne", INPUTS / SUZANNE))
     for name, text in RULES.items():
         (INPUTS / f"{name}.toml").write_text(text)
     MESHES.mkdir(parents=True, exist_ok=True)
 
 
 def available_peers(args):
-    found = {"libigl", "trimesh", "cgal", "geomdl", "splinepy"}
+    found = {"libigl", "trimesh", "cgal", "qhull", "geomdl", "splinepy"}
     if shutil.which("blender"):
         found.add("bmesh")
     if CURVO.exists():
@@ -153,6 +166,23 @@ def grid_rule(n, m=None, *steps):
     return text + "".join(STEP.format(name=name, body=body) for name, body in steps)
 
 
+def subdivide_rule(cage, levels):
+    step = ("subdivide", f"subdivide = {{ levels = {levels} }}")
+    if cage.startswith("grid"):
+        return grid_rule(int(cage[4:]), None, step)
+    return f'[start]\nimport = {{ path = "{cage}.obj" }}\n' + STEP.format(name=step[0], body=step[1])
+
+
+def hull_rule(kind, n):
+    """The points as loose vertices, their hull, then the points deleted
+    (the hull's vertices are new ones), so the counts are the hull's."""
+    return (
+        f'[start]\nimport = {{ path = "{kind}{n}.ply" }}\n'
+        + STEP.format(name="hull", body="convex_hull = {}")
+        + STEP.format(name="points", body='on = "vertices"\nselect = "faces == 0"\ndelete = {}')
+    )
+
+
 def uniform_rule(n):
     cells = f"[{n - 1}, {n - 1}]"
     return (
@@ -179,6 +209,8 @@ RULES = {
     "uniform100": uniform_rule(100),
     "uniform1000": uniform_rule(1000),
     "adaptive": (ROOT / "rules" / "nurbs-surface.toml").read_text(),
+    **{f"subdivide-{cage}-L{levels}": subdivide_rule(cage, levels) for cage, levels in SUBDIVIDE_CASES},
+    **{f"hull-{kind}{n}": hull_rule(kind, n) for kind, n in HULL_SETS},
 }
 
 
@@ -317,6 +349,25 @@ def graftal_nurbs_adaptive():
     }
 
 
+def graftal_subdivide():
+    found = {}
+    for cage, levels in SUBDIVIDE_CASES:
+        key = f"subdivide-{cage}-L{levels}"
+        mesh, steps, wall, _, out = graftal_run(key)
+        found[key] = result(
+            step_seconds(steps["subdivide"]), mesh, wall, sum_abs=float(abs(ply_vertices(out)).sum())
+        )
+    return found
+
+
+def graftal_hull():
+    found = {}
+    for kind, n in HULL_SETS:
+        mesh, steps, wall, _, _ = graftal_run(f"hull-{kind}{n}")
+        found[f"hull-{kind}{n}"] = result(step_seconds(steps["hull"]), mesh, wall)
+    return found
+
+
 def criterion_median(bench_id):
     path = CRITERION / bench_id / "new" / "estimates.json"
     if not path.exists():
@@ -354,6 +405,7 @@ class Row:
     check: tuple = ("vertices", "faces")  # fields every tool must agree on
     expect: dict = field(default_factory=dict)  # field -> the right answer
     show: tuple = ()  # fields for the outputs table (default: check)
+    unchecked: tuple = ()  # peers timed and shown but not held to check (inexact by design)
 
 
 @dataclass
@@ -514,7 +566,70 @@ def workloads(args):
                 ),
             ],
         ),
+        Workload(
+            "subdivide",
+            "11. subdivide, Catmull–Clark (Blender: the subdivision-surface modifier applied, OpenSubdiv)",
+            graftal_subdivide,
+            subdivide_rows(),
+        ),
+        Workload(
+            "hull",
+            "12. convex hull of random points",
+            graftal_hull,
+            hull_rows(),
+        ),
+        # 13. bevel: a row for graftal's `bevel` step beside `bmesh.ops.bevel` on
+        # the same input goes here (a Workload "bevel", its graftal function, a
+        # "bevel" op in bmesh_bench.py, a rule in RULES, its name in
+        # WORKLOAD_NAMES). Not written yet.
     ]
+
+
+# Suzanne's 500 faces have 1,968 corners: level 1 makes a quad per corner,
+# every further level four of each.
+SUZANNE_CORNERS = 1968
+
+
+def subdivide_rows():
+    rows = []
+    for cage, levels in SUBDIVIDE_CASES:
+        if cage == "suzanne":
+            label = f"Suzanne (500 faces), level {levels}"
+            expect = {"faces": SUZANNE_CORNERS * 4 ** (levels - 1)}
+        else:
+            n = int(cage[4:]) * 2**levels
+            label = f"grid {cage[4:]}², level {levels} (open: boundary Keep Corners)"
+            expect = {"vertices": (n + 1) ** 2, "faces": n * n}
+        cage_arg = INPUTS / SUZANNE if cage == "suzanne" else cage
+        rows.append(
+            Row(
+                f"`subdivide` step, {label}",
+                f"subdivide-{cage}-L{levels}",
+                {"bmesh": blender("subdivide", cage_arg, levels)},
+                check=("vertices", "faces", "sum_abs"),
+                expect=expect,
+            )
+        )
+    return rows
+
+
+def hull_rows():
+    rows = []
+    for kind, n in HULL_SETS:
+        where = "in the unit ball" if kind == "ball" else "on the unit sphere (all extreme)"
+        rows.append(
+            Row(
+                f"`convex_hull` step, {n:,} points {where}",
+                f"hull-{kind}{n}",
+                {
+                    "qhull": venv_py("peers_scipy.py", "hull", INPUTS / f"{kind}{n}.npy"),
+                    "bmesh": blender("hull", INPUTS / f"{kind}{n}.npy"),
+                },
+                expect={"vertices": n} if kind == "sphere" else {},
+                unchecked=("bmesh",),
+            )
+        )
+    return rows
 
 
 S_03_06 = [3.0497846, 5.1406050, -1.2761698]
@@ -560,6 +675,9 @@ WORKLOAD_NAMES = [
     "selfx",
     "nurbs-grid",
     "nurbs-adaptive",
+    "subdivide",
+    "hull",
+    # "bevel" (a later row, see workloads())
 ]
 
 
@@ -635,7 +753,9 @@ def disagreements(row, tools):
     """Lines naming each field on which the tools differ or miss the right answer."""
     found = []
     for fld in row.check:
-        values = {name: t[fld] for name, t in tools.items() if t.get(fld) is not None}
+        values = {
+            name: t[fld] for name, t in tools.items() if t.get(fld) is not None and name not in row.unchecked
+        }
         got = ", ".join(f"{n} {v}" for n, v in values.items())
         if fld in row.expect:
             if any(not close(v, row.expect[fld], 1e-3) for v in values.values()):
@@ -684,10 +804,15 @@ def speedup(tools):
     return "–"
 
 
-def ratio(tools, peers):
+def ratio(tools, peers, unchecked=()):
+    """Best peer / graftal, among the peers whose outputs are checked."""
     graftal = tools["graftal"]
     mine = graftal.get("seconds") if graftal.get("seconds") is not None else graftal.get("wall")
-    timed = [(tools[p]["seconds"], p) for p in peers if p in tools and tools[p].get("seconds")]
+    timed = [
+        (tools[p]["seconds"], p)
+        for p in peers
+        if p in tools and p not in unchecked and tools[p].get("seconds")
+    ]
     if not mine or not timed:
         return "–"
     best, name = min(timed)
@@ -755,7 +880,8 @@ def report(args, peers, results, notes):
         "",
         f"Median of {args.runs} interleaved rounds. Peers: the operation alone (input loaded first). "
         "graftal: the step's `time_ms` from a one-variant batch manifest (`--seeds 0..1 --timings`), and the whole process "
-        "(a second, plain run). Ratio: best peer / graftal (step, else whole process); "
+        "(a second, plain run). Ratio: best peer / graftal (step, else whole process; peers whose counts "
+        "are not checked are left out); "
         "above 1 means graftal is faster. ⚠ marks a row whose tools disagree."
         + (
             f" graftal before: `{args.baseline}`, run in the same rounds right after graftal;"
@@ -777,7 +903,7 @@ def report(args, peers, results, notes):
             cells += [cell(then) if then and then.get("seconds") is not None else seconds(then and then.get("wall")), speedup(tools)]
         cells += [cell(tools.get(p)) if p in row.peers else "–" for p in peers]
         label = f"{workload.title}: {row.label}{flag}"
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {ratio(tools, peers)} |")
+        lines.append(f"| {label} | " + " | ".join(cells) + f" | {ratio(tools, peers, row.unchecked)} |")
         details.append(f"| {label} | {outputs(row, tools)} |")
     text = "\n".join(lines + details + ["", "## Notes", ""] + [f"- {n}" for n in notes]) + "\n"
     print(text)
@@ -814,6 +940,14 @@ def skipped_notes(args, peers, chosen):
     notes = [] if "bmesh" in peers else ["Blender is not installed: no bmesh column."]
     if "geomdl" in peers and "nurbs-grid" in chosen and not args.slow:
         notes.append("geomdl at 1000² is left out (about 16 s a call): run with --slow to include it.")
+    if "hull" in chosen and "bmesh" in peers:
+        notes.append(
+            "convex hull: bmesh's counts are shown, not checked: it rounds the points to float32 and "
+            "drops points nearly coplanar with their neighbours, so it finds fewer hull vertices "
+            "than the exact hulls (graftal's, qhull's) on dense sets."
+        )
+    if "subdivide" in chosen and not shutil.which("blender"):
+        notes.append("subdivide: without Blender there is no Suzanne cage (it is written by Blender): its rows fail.")
     if not args.with_occt:
         notes.append("OCP (OCCT) is left out: run with --with-occt or BENCH_PEERS_OCCT=1.")
     return notes
