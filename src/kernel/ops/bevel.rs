@@ -128,6 +128,9 @@ pub fn bevel(
             "a vertex bevel measures along the edges: `offset` or `percent`",
         ));
     }
+    if options.width == 0.0 {
+        return Ok(Selection::new()); // nothing to cut, as Blender
+    }
     let beveled: FxHashSet<EdgeId> = match options.affect {
         Affect::Edges => edges
             .iter()
@@ -1231,6 +1234,65 @@ mod tests {
         bevel(&mut mesh, &[], &verts, o).unwrap();
         mesh.validate().unwrap();
         assert!(mesh.report().watertight && mesh.report().consistently_oriented);
+    }
+
+    #[test]
+    fn closed_meshes_of_any_valence_stay_closed_at_every_setting() {
+        // A UV sphere: valence 4, and 8 at the poles (triangle fans); a
+        // cylinder: n-gon caps.
+        let makers: [fn(&mut Mesh); 2] = [
+            |m| {
+                create::create_uv_sphere(m, 8, 5, 1.0).unwrap();
+            },
+            |m| {
+                create::create_cylinder(m, 7, 1.0, 0.6, 2.0, true).unwrap();
+            },
+        ];
+        for make in makers {
+            for offset_type in [
+                OffsetType::Offset,
+                OffsetType::Width,
+                OffsetType::Depth,
+                OffsetType::Percent,
+            ] {
+                for (segments, profile) in [(1, 0.5), (2, 0.5), (3, 0.25), (4, 1.0), (3, 0.8)] {
+                    let mut mesh = Mesh::new();
+                    make(&mut mesh);
+                    let edges: Vec<EdgeId> = mesh.edge_ids().collect();
+                    let width = if offset_type == OffsetType::Percent {
+                        20.0
+                    } else {
+                        0.08
+                    };
+                    let o = Bevel {
+                        width,
+                        offset_type,
+                        segments,
+                        profile,
+                        clamp_overlap: true,
+                        affect: Affect::Edges,
+                    };
+                    bevel(&mut mesh, &edges, &[], o).unwrap();
+                    mesh.validate().unwrap();
+                    let r = mesh.report();
+                    let label = format!("{offset_type:?} {segments} {profile}");
+                    assert!(
+                        r.watertight && r.manifold && r.consistently_oriented,
+                        "{label}"
+                    );
+                    assert!(r.volume.unwrap() > 0.0, "{label}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn zero_width_changes_nothing() {
+        let mut mesh = cube();
+        let edges: Vec<EdgeId> = mesh.edge_ids().collect();
+        let made = bevel(&mut mesh, &edges, &[], options(0.0, 3)).unwrap();
+        assert!(made.is_empty());
+        assert_eq!(counts(&mesh), (8, 12, 6));
     }
 
     #[test]
