@@ -253,15 +253,30 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         // most (a shorter loop's vertices pair with the longer one's, never
         // more than all the selected edges' vertices).
         OpArgs::BridgeLoops { segments, .. } => m(n(segments), m(edge_count(), 4)),
-        // Per beveled edge: two profiles of segments + 1 points and a band
-        // of segments faces; per vertex a corner grid of about segments²
-        // faces (each face at most a vertex and two edges).
+        // Per beveled edge (or edge at a beveled vertex): its two
+        // profiles' points, a band of `segments` faces and at each end a
+        // share of the corner grid, ⌈segments / 2⌉² faces per side; as
+        // many edges again (a cube's 12 edges at 1 segment: 98 new
+        // elements, 168 allowed).
         OpArgs::Bevel { segments, .. } => {
-            let s = n(segments).saturating_add(1);
-            m(
-                s.saturating_mul(s),
-                m(edge_count().saturating_add(vert_count()), 8),
-            )
+            let s = n(segments);
+            let half = s.saturating_add(1) / 2;
+            let per_edge = m(
+                m(s.saturating_add(1), 2)
+                    .saturating_add(s)
+                    .saturating_add(m(m(half, half), 2)),
+                2,
+            );
+            let edges = match ctx.domain {
+                Domain::Vert => sel
+                    .by_domain
+                    .verts
+                    .iter()
+                    .map(|&v| mesh.vert_degree(v) as u64)
+                    .fold(0, u64::saturating_add),
+                _ => edge_count(),
+            };
+            m(edges, per_edge)
         }
         OpArgs::Solidify { .. } => m(
             sel.by_domain

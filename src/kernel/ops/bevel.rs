@@ -690,7 +690,10 @@ impl Context<'_> {
         points: &mut Vec<(DVec3, VertId)>,
         faces: &mut Vec<(Vec<Pt>, FaceId)>,
     ) {
-        if !plan.cap {
+        // A hole at an open vertex stays open, as Blender leaves it: a
+        // face there would span the opening between a band's profile and
+        // its chord.
+        if !plan.cap || !fan.closed {
             return;
         }
         let k = fan.corners.len();
@@ -1284,6 +1287,31 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn holes_at_open_vertices_stay_open() {
+        // An open box's vertical edges: at the top the bands end in the
+        // opening (Blender: 32 vertices, 48 edges, 17 faces, 16 open edges).
+        let mut mesh = cube();
+        let top: Vec<FaceId> = mesh
+            .face_ids()
+            .filter(|&f| mesh.face_normal(f).z > 0.5)
+            .collect();
+        for f in top {
+            mesh.kill_face(f).unwrap();
+        }
+        let vertical: Vec<EdgeId> = mesh
+            .edge_ids()
+            .filter(|&e| {
+                let [a, b] = mesh.edge_verts(e);
+                (mesh.position(a) - mesh.position(b)).normalize().z.abs() > 0.99
+            })
+            .collect();
+        bevel(&mut mesh, &vertical, &[], options(0.3, 3)).unwrap();
+        mesh.validate().unwrap();
+        assert_eq!(counts(&mesh), (32, 48, 17));
+        assert_eq!(mesh.report().boundary_edges, 16);
     }
 
     #[test]
