@@ -322,7 +322,7 @@ fn info_and_convert_round_trip() {
     }
     let o = graftal(&["check", "rules/chair.toml"]);
     assert!(o.status.success());
-    assert!(String::from_utf8_lossy(&o.stdout).contains("ok (6 parameters, 6 steps)"));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("ok (7 parameters, 7 steps)"));
 }
 
 #[test]
