@@ -5,9 +5,10 @@
 SITE is the bench venv's site-packages (Debian's Blender has no numpy).
 OP ARGS is one of: merge soup.npz | selfx selfx.npz | grid N | inset N T |
 extrude N | triangulate N | mirror N | subdivide CAGE LEVELS | hull POINTS.npy |
-suzanne OUT.obj (writes the subdivide workload's cage, untimed). Grids have
-N × N cells of 0.01 (bmesh's `size` is half the extent); CAGE is an OBJ or
-`gridN`. Blender stores float32 coordinates.
+bevel MESH.npz WIDTH SEGMENTS | suzanne OUT.obj (writes the subdivide
+workload's cage, untimed). Grids have N × N cells of 0.01 (bmesh's `size`
+is half the extent); CAGE is an OBJ or `gridN`. Blender stores float32
+coordinates.
 """
 
 import os
@@ -31,15 +32,17 @@ from benchlib import emit, load, timed  # noqa: E402
 
 
 def from_arrays(verts, faces):
-    """A bmesh of triangles through a Mesh's foreach_set (fast, untimed)."""
+    """A bmesh of faces of one size (triangles, quads) through a Mesh's
+    foreach_set (fast, untimed)."""
     me = bpy.data.meshes.new("input")
     me.vertices.add(len(verts))
     me.vertices.foreach_set("co", verts.astype(np.float32).ravel())
     me.loops.add(faces.size)
     me.loops.foreach_set("vertex_index", faces.astype(np.int32).ravel())
     me.polygons.add(len(faces))
-    me.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
-    me.polygons.foreach_set("loop_total", np.full(len(faces), 3, dtype=np.int32))
+    corners = faces.shape[1]
+    me.polygons.foreach_set("loop_start", np.arange(0, faces.size, corners, dtype=np.int32))
+    me.polygons.foreach_set("loop_total", np.full(len(faces), corners, dtype=np.int32))
     me.update()
     bm = bmesh.new()
     bm.from_mesh(me)
@@ -192,6 +195,41 @@ def hull(path):
     report(seconds, bm)
 
 
+def bevel(path, width, segments):
+    """`bmesh.ops.bevel` of every edge, as graftal's `bevel` step: offset
+    type "offset", superellipse profile 0.5, no clamping, sharp miters,
+    the "adj" corner mesh. Sums |x| + |y| + |z| over the vertices."""
+    bm = from_arrays(*load(path))
+    edges = bm.edges[:]
+    seconds, _ = timed(
+        bmesh.ops.bevel,
+        bm,
+        geom=edges,
+        offset=float(width),
+        offset_type="OFFSET",
+        profile_type="SUPERELLIPSE",
+        segments=int(segments),
+        profile=0.5,
+        affect="EDGES",
+        clamp_overlap=False,
+        material=-1,
+        loop_slide=False,
+        mark_seam=False,
+        mark_sharp=False,
+        harden_normals=False,
+        face_strength_mode="NONE",
+        miter_outer="SHARP",
+        miter_inner="SHARP",
+        spread=0.1,
+        vmesh_method="ADJ",
+    )
+    me = bpy.data.meshes.new("beveled")
+    bm.to_mesh(me)
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    report(seconds, bm, sum_abs=float(np.abs(co.astype(np.float64)).sum()))
+
+
 OPS = {
     "merge": merge,
     "selfx": selfx,
@@ -203,7 +241,7 @@ OPS = {
     "suzanne": suzanne,
     "subdivide": subdivide,
     "hull": hull,
-    # "bevel": a later row (bmesh.ops.bevel beside graftal's `bevel` step) goes here.
+    "bevel": bevel,
 }
 
 if __name__ == "__main__":

@@ -5,9 +5,9 @@
 Deterministic: the soup's jitter and the hull's random points come from
 numpy's seeded RNG, the icospheres from trimesh.creation. Each mesh is
 written as binary PLY (for graftal), .npz (for the Python peers) and, for
-CGAL, OFF; the hull's point sets as PLY (vertices only) and .npy. The
-subdivide workload's cage (Blender's Suzanne) is written by run.py through
-Blender, not here.
+CGAL, OFF; the hull's point sets as PLY (vertices only) and .npy; the
+bevel workload's quad spheres as PLY and .npz. The subdivide workload's
+cage (Blender's Suzanne) is written by run.py through Blender, not here.
 """
 
 import sys
@@ -19,6 +19,9 @@ import trimesh
 SEED = 17
 SOUP_CELLS, SOUP_SPACING, SOUP_JITTER = 408, 0.01, 1e-6
 HULL_KINDS, HULL_SIZES = ("ball", "sphere"), (10_000, 100_000, 1_000_000)
+# The bevel workload: quad spheres of N × N cells a cube face, 12 N² edges
+# (10,092, 99,372 and 1,002,252).
+BEVEL_SIZES = (29, 91, 289)
 
 
 def grid(nx, ny, spacing):
@@ -64,6 +67,31 @@ def hull_points(kind, n):
     return points
 
 
+def quad_sphere(n):
+    """A closed quad mesh: a cube's faces cut into n × n cells, pushed onto
+    the unit sphere (6 n² + 2 vertices: 8 of valence 3, the rest 4;
+    12 n² edges; 6 n² quads, outward). Its shortest edge is 0.47 · 2/n
+    (at the cube's corners), its longest 2/n."""
+    i, j = (c.ravel() for c in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
+    corners = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
+    faces = []
+    for a in range(3):
+        u, v = (a + 1) % 3, (a + 2) % 3  # e_u × e_v = e_a: counter-clockwise seen from +a
+        for side in (0, n):
+            quad = []
+            for ci, cj in corners:
+                p = np.empty((len(i), 3), np.int64)
+                p[:, a], p[:, u], p[:, v] = side, ci, cj
+                quad.append(p)
+            if side == 0:
+                quad.reverse()
+            faces.append(np.stack(quad, axis=1))
+    lattice = np.concatenate(faces).reshape(-1, 3)
+    points, index = np.unique(lattice, axis=0, return_inverse=True)
+    verts = points * (2.0 / n) - 1.0
+    return verts / np.linalg.norm(verts, axis=1)[:, None], index.reshape(-1, 4)
+
+
 def write_ply(path, verts, faces):
     header = (
         "ply\nformat binary_little_endian 1.0\n"
@@ -72,9 +100,10 @@ def write_ply(path, verts, faces):
         f"element face {len(faces)}\n"
         "property list uchar int vertex_indices\nend_header\n"
     )
-    record = np.dtype([("n", "u1"), ("v", "<i4", 3)], align=False)
+    corners = faces.shape[1]
+    record = np.dtype([("n", "u1"), ("v", "<i4", corners)], align=False)
     packed = np.empty(len(faces), record)
-    packed["n"], packed["v"] = 3, faces
+    packed["n"], packed["v"] = corners, faces
     with open(path, "wb") as f:
         f.write(header.encode())
         f.write(np.ascontiguousarray(verts, "<f8").tobytes())
@@ -103,6 +132,10 @@ def main(out):
             points = hull_points(kind, n)
             write_ply(out / f"{kind}{n}.ply", points, np.empty((0, 3), int))
             np.save(out / f"{kind}{n}.npy", points)
+    for n in BEVEL_SIZES:
+        verts, quads = quad_sphere(n)
+        write_ply(out / f"qsphere{n}.ply", verts, quads)
+        np.savez(out / f"qsphere{n}.npz", vertices=verts, faces=quads)
 
 
 if __name__ == "__main__":

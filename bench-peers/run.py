@@ -62,6 +62,16 @@ INPUT_FILES = ["soup.ply", "soup.npz", "selfx.ply", "selfx.npz", "selfx.off", "q
 # `gridN` an N × N grid of 0.01 cells. Outputs from 7,872 to 1,000,000 faces.
 SUBDIVIDE_CASES = [("suzanne", 2), ("suzanne", 3), ("suzanne", 4), ("suzanne", 5), ("grid250", 2)]
 SUZANNE = "suzanne.obj"
+# The bevel workload: (N, segments) on make_inputs.py's quad sphere of
+# N × N cells a cube face (12 N² edges), every edge beveled by 0.1 / N
+# (about a tenth of the shortest edge, 0.94 / N: no two new corners meet,
+# nothing to clamp).
+BEVEL_CASES = [(29, 1), (91, 1), (289, 1), (29, 3), (91, 3), (289, 3)]
+INPUT_FILES += [f"qsphere{n}.{ext}" for n in sorted({n for n, _ in BEVEL_CASES}) for ext in ("ply", "npz")]
+
+
+def bevel_width(n):
+    return 0.1 / n
 
 
 # ---------------------------------------------------------------- set-up
@@ -183,6 +193,15 @@ def hull_rule(kind, n):
     )
 
 
+def bevel_rule(n, segments):
+    body = (
+        'on = "edges"\n'
+        f"bevel = {{ width = {bevel_width(n)!r}, segments = {segments}, profile = 0.5, "
+        'offset_type = "offset", clamp_overlap = false }'
+    )
+    return f'[start]\nimport = {{ path = "qsphere{n}.ply" }}\n' + STEP.format(name="bevel", body=body)
+
+
 def uniform_rule(n):
     cells = f"[{n - 1}, {n - 1}]"
     return (
@@ -211,6 +230,7 @@ RULES = {
     "adaptive": (ROOT / "rules" / "nurbs-surface.toml").read_text(),
     **{f"subdivide-{cage}-L{levels}": subdivide_rule(cage, levels) for cage, levels in SUBDIVIDE_CASES},
     **{f"hull-{kind}{n}": hull_rule(kind, n) for kind, n in HULL_SETS},
+    **{f"bevel-qsphere{n}-S{segments}": bevel_rule(n, segments) for n, segments in BEVEL_CASES},
 }
 
 
@@ -265,17 +285,18 @@ def curvo(*args):
     return [str(CURVO), *map(str, args)]
 
 
-def graftal_run(rule, ext=".ply"):
+def graftal_run(rule, ext=".ply", flags=()):
     """One run as a one-variant batch with --timings (its manifest records
     the step times and counts without the --stats mesh analysis, which on
-    the 5M-face extrude costs ~100 s), one plain run (wall, RSS)."""
+    the 5M-face extrude costs ~100 s), one plain run (wall, RSS); `flags`
+    go to both."""
     out = MESHES / f"{rule}{ext}"
     batch = MESHES / f"{rule}-batch"
     shutil.rmtree(batch, ignore_errors=True)
     rules = str(INPUTS / f"{rule}.toml")
-    spawn([str(RUNNING[0]), "run", rules, "--seeds", "0..1", "-o", str(batch / ("{seed}" + ext)), "--timings", "-q"])
+    spawn([str(RUNNING[0]), "run", rules, *flags, "--seeds", "0..1", "-o", str(batch / ("{seed}" + ext)), "--timings", "-q"])
     variant = json.loads((batch / "manifest.json").read_text())["variants"][0]
-    wall, _, rss = spawn([str(RUNNING[0]), "run", rules, "-o", str(out), "-q"])
+    wall, _, rss = spawn([str(RUNNING[0]), "run", rules, *flags, "-o", str(out), "-q"])
     steps = {s["name"]: s for s in variant["steps"]}
     return variant["counts"], steps, wall, rss, out
 
@@ -365,6 +386,20 @@ def graftal_hull():
     for kind, n in HULL_SETS:
         mesh, steps, wall, _, _ = graftal_run(f"hull-{kind}{n}")
         found[f"hull-{kind}{n}"] = result(step_seconds(steps["hull"]), mesh, wall)
+    return found
+
+
+def graftal_bevel():
+    """--max-primitives: the bevel step's growth bound, (segments + 1)² · 8
+    per selected edge and vertex, is 48M at 1,002,252 edges and 1 segment
+    (it makes 6M), past the default limit of 50M with the input."""
+    found = {}
+    for n, segments in BEVEL_CASES:
+        key = f"bevel-qsphere{n}-S{segments}"
+        mesh, steps, wall, _, out = graftal_run(key, flags=("--max-primitives", "400000000"))
+        found[key] = result(
+            step_seconds(steps["bevel"]), mesh, wall, sum_abs=float(abs(ply_vertices(out)).sum())
+        )
     return found
 
 
@@ -578,10 +613,12 @@ def workloads(args):
             graftal_hull,
             hull_rows(),
         ),
-        # 13. bevel: a row for graftal's `bevel` step beside `bmesh.ops.bevel` on
-        # the same input goes here (a Workload "bevel", its graftal function, a
-        # "bevel" op in bmesh_bench.py, a rule in RULES, its name in
-        # WORKLOAD_NAMES). Not written yet.
+        Workload(
+            "bevel",
+            "13. bevel every edge of a quad sphere (offset 0.1 / N, profile 0.5, no clamping)",
+            graftal_bevel,
+            bevel_rows(),
+        ),
     ]
 
 
@@ -607,6 +644,30 @@ def subdivide_rows():
                 f"subdivide-{cage}-L{levels}",
                 {"bmesh": blender("subdivide", cage_arg, levels)},
                 check=("vertices", "faces", "sum_abs"),
+                expect=expect,
+            )
+        )
+    return rows
+
+
+def bevel_rows():
+    """Every edge beveled, so every vertex is a corner patch: its valence
+    in vertices (one a band end), one face for it at 1 segment. At 1
+    segment the positions are Blender's (the sums agree to 1e-6); at 3 the
+    corner patches' interiors differ by design (graftal's Coons patch on
+    the superellipsoid, Blender's subdivision): the same counts, sums
+    shown only."""
+    rows = []
+    for n, segments in BEVEL_CASES:
+        edges, faces, verts = 12 * n * n, 6 * n * n, 6 * n * n + 2
+        expect = {"vertices": 2 * edges, "faces": faces + edges + verts} if segments == 1 else {}
+        rows.append(
+            Row(
+                f"`bevel` step, {edges:,} edges ({n}² cells a face), {segments} segment{'s' * (segments > 1)}",
+                f"bevel-qsphere{n}-S{segments}",
+                {"bmesh": blender("bevel", INPUTS / f"qsphere{n}.npz", repr(bevel_width(n)), segments)},
+                check=("vertices", "faces", "sum_abs") if segments == 1 else ("vertices", "faces"),
+                show=("vertices", "faces", "sum_abs"),
                 expect=expect,
             )
         )
@@ -677,7 +738,7 @@ WORKLOAD_NAMES = [
     "nurbs-adaptive",
     "subdivide",
     "hull",
-    # "bevel" (a later row, see workloads())
+    "bevel",
 ]
 
 
