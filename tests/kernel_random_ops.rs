@@ -355,7 +355,12 @@ fn random_operator_sequences_keep_every_invariant() {
             m.face_count(),
         )
     };
-    for seed in 0..24u64 {
+    // RANDOM_OPS_SEEDS=2000 for a longer local search (CI runs 24).
+    let seeds: u64 = std::env::var("RANDOM_OPS_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(24);
+    for seed in 0..seeds {
         let mut rng = Rng(seed);
         let mut mesh = Mesh::new();
         mesh.add_layer("radius", Domain::Vert, AttrValue::Scalar(1.0))

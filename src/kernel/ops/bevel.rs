@@ -34,11 +34,10 @@
 //! material) of the face they replace or border, new vertices those of the
 //! vertex they come from.
 
-use glam::DVec3;
-use rustc_hash::{FxHashMap, FxHashSet};
-
+use super::side_table::{SideTable, SlotSet};
 use super::{into_canonical, OpError, Selection};
-use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
+use crate::kernel::{EdgeId, FaceId, LoopId, Mesh, VertId};
+use glam::DVec3;
 
 /// How `width` is measured (Blender's offset types).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -86,6 +85,8 @@ enum Pt {
 #[derive(Debug, Clone, Copy)]
 struct Corner {
     face: FaceId,
+    /// The face's loop at the vertex.
+    lp: LoopId,
     /// The edge entering the vertex in the face's ring, and leaving it.
     e_in: EdgeId,
     e_out: EdgeId,
@@ -96,9 +97,59 @@ struct Corner {
 
 /// The faces around a vertex, each followed by the one across its
 /// `e_out`; `closed` when the last leads back to the first.
-struct Fan {
-    corners: Vec<Corner>,
+#[derive(Clone, Copy)]
+struct Fan<'a> {
+    corners: &'a [Corner],
     closed: bool,
+}
+
+/// Every centre's fan, back to back in one vector (a big bevel has a
+/// million of them: one allocation each was a good part of its time).
+/// A corner's index here is its index in the plan's per-corner lists too.
+#[derive(Default)]
+struct Fans {
+    corners: Vec<Corner>,
+    /// Per centre: where its corners start, and whether its fan is closed.
+    heads: Vec<(usize, bool)>,
+}
+
+impl Fans {
+    fn get(&self, c: usize) -> Fan<'_> {
+        let (start, closed) = self.heads[c];
+        let end = self.heads.get(c + 1).map_or(self.corners.len(), |h| h.0);
+        Fan {
+            corners: &self.corners[start..end],
+            closed,
+        }
+    }
+}
+
+/// A run of points in the plan's arena ([`Plan::pts`]).
+#[derive(Debug, Clone, Copy, Default)]
+struct Span {
+    start: usize,
+    len: usize,
+}
+
+impl Span {
+    fn of(pts: &[Pt], start: usize) -> Span {
+        Span {
+            start,
+            len: pts.len() - start,
+        }
+    }
+
+    fn get(self, pts: &[Pt]) -> &[Pt] {
+        &pts[self.start..self.start + self.len]
+    }
+
+    fn at(self, pts: &[Pt], i: usize) -> Pt {
+        self.get(pts)[i]
+    }
+
+    fn range(self) -> std::ops::Range<usize> {
+        self.start..self.start + self.len
+    }
 }
 
 /// Bevels `edges` (or, with [`Affect::Vertices`], `verts`).
@@ -131,24 +182,22 @@ pub fn bevel(
     if options.width == 0.0 {
         return Ok(Selection::new()); // nothing to cut, as Blender
     }
-    let beveled: FxHashSet<EdgeId> = match options.affect {
+    // The beveled edges in id order, and a set of them by slot (tested
+    // for every edge at every centre: a bit, not a hash probe).
+    let bands: Vec<EdgeId> = match options.affect {
         Affect::Edges => edges
             .iter()
             .copied()
             .filter(|&e| mesh.edge_face_count(e) == 2)
             .collect(),
-        Affect::Vertices => FxHashSet::default(),
+        Affect::Vertices => Vec::new(),
     };
+    let mut beveled = SlotSet::new(bands.len(), mesh.edge_capacity());
+    for &e in &bands {
+        beveled.insert(e.index());
+    }
     let centres: Vec<VertId> = match options.affect {
-        Affect::Edges => {
-            let mut c: Vec<VertId> = edges
-                .iter()
-                .filter(|e| beveled.contains(e))
-                .flat_map(|&e| mesh.edge_verts(e))
-                .collect();
-            c = into_canonical(c);
-            c
-        }
+        Affect::Edges => into_canonical(bands.iter().flat_map(|&e| mesh.edge_verts(e)).collect()),
         Affect::Vertices => verts
             .iter()
             .copied()
@@ -158,19 +207,31 @@ pub fn bevel(
     if centres.is_empty() {
         return Ok(Selection::new());
     }
-    let mut fans = Vec::with_capacity(centres.len());
+    let mut fans = Fans::default();
+    let mut scratch = FanScratch::default();
     for &v in &centres {
-        fans.push(fan(mesh, v)?);
+        let start = fans.corners.len();
+        let closed = fan(mesh, v, &mut scratch, &mut fans.corners)?;
+        fans.heads.push((start, closed));
+    }
+    // Each fan corner by its face's loop at the centre: a face's ring
+    // and a band's ends find their corners with one look-up.
+    let mut corner_of_loop = SideTable::new(fans.corners.len(), mesh.loops.capacity());
+    for (g, c) in fans.corners.iter().enumerate() {
+        corner_of_loop.insert(c.lp.index(), g);
     }
     let ctx = Context {
         mesh,
         options: &options,
         beveled: &beveled,
+        bands: &bands,
+        fans: &fans,
+        corner_of_loop: &corner_of_loop,
         chords: superellipse_chords(options.segments as usize, options.profile),
     };
-    let mut plan = ctx.plan(&centres, &fans, 1.0)?;
+    let mut plan = ctx.plan(&centres, 1.0)?;
     if options.clamp_overlap && plan.overlap_limit < 1.0 {
-        plan = ctx.plan(&centres, &fans, plan.overlap_limit)?;
+        plan = ctx.plan(&centres, plan.overlap_limit)?;
     }
     if plan.points.iter().any(|(p, _)| !p.is_finite()) {
         return Err(OpError::Degenerate(
@@ -210,34 +271,44 @@ fn check_options(o: &Bevel) -> Result<(), OpError> {
     Ok(())
 }
 
-/// The faces around `v` in fan order (each face's `e_out` is the next
-/// face's `e_in`), starting after a boundary where there is one.
-fn fan(mesh: &Mesh, v: VertId) -> Result<Fan, OpError> {
-    let mut corners: Vec<Corner> = Vec::new();
-    let mut faces: Vec<FaceId> = mesh.vert_faces(v).collect();
-    faces.sort_unstable();
-    faces.dedup();
-    for &f in &faces {
-        let ring: Vec<VertId> = mesh.face_verts(f).collect();
-        let n = ring.len();
-        for i in 0..n {
-            if ring[i] != v {
+/// Buffers [`fan`] reuses from one vertex to the next.
+#[derive(Default)]
+struct FanScratch {
+    faces: Vec<FaceId>,
+    corners: Vec<Corner>,
+    /// (e_in, corner) and the e_outs, sorted: looked up by binary search.
+    by_in: Vec<(EdgeId, usize)>,
+    outs: Vec<EdgeId>,
+}
+
+/// Appends the faces around `v` to `out` in fan order (each face's `e_out`
+/// is the next face's `e_in`), starting after a boundary where there is
+/// one; whether the fan is closed.
+fn fan(mesh: &Mesh, v: VertId, s: &mut FanScratch, out: &mut Vec<Corner>) -> Result<bool, OpError> {
+    s.faces.clear();
+    s.faces.extend(mesh.vert_faces(v));
+    s.faces.sort_unstable();
+    s.faces.dedup();
+    s.corners.clear();
+    for &f in &s.faces {
+        for l in mesh.face_loops(f) {
+            if mesh.loop_vert(l) != v {
                 continue;
             }
-            let (prev, next) = (ring[(i + n - 1) % n], ring[(i + 1) % n]);
-            let (Some(e_in), Some(e_out)) = (mesh.find_edge(prev, v), mesh.find_edge(v, next))
-            else {
-                continue;
-            };
-            corners.push(Corner {
+            // Edges are unique per pair of vertices: the loops' edges are
+            // the ones joining v to its neighbours in the face.
+            let before = mesh.lp(l).prev;
+            s.corners.push(Corner {
                 face: f,
-                e_in,
-                e_out,
-                prev,
-                next,
+                lp: l,
+                e_in: mesh.loop_edge(before),
+                e_out: mesh.loop_edge(l),
+                prev: mesh.loop_vert(before),
+                next: mesh.loop_vert(mesh.lp(l).next),
             });
         }
     }
+    let corners = &s.corners;
     let non_manifold = || {
         OpError::Degenerate(format!(
             "bevel: the faces around vertex {} do not form one fan (a non-manifold vertex); \
@@ -252,47 +323,56 @@ fn fan(mesh: &Mesh, v: VertId) -> Result<Fan, OpError> {
     {
         return Err(non_manifold());
     }
-    // Start at a corner whose e_in has no face before it (a boundary).
-    let by_in: FxHashMap<EdgeId, usize> = corners
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (c.e_in, i))
-        .collect();
-    if by_in.len() != corners.len() {
+    s.by_in.clear();
+    s.by_in
+        .extend(corners.iter().enumerate().map(|(i, c)| (c.e_in, i)));
+    s.by_in.sort_unstable();
+    if s.by_in.windows(2).any(|w| w[0].0 == w[1].0) {
         return Err(non_manifold());
     }
+    let by_in = |e: EdgeId| {
+        s.by_in
+            .binary_search_by_key(&e, |&(e_in, _)| e_in)
+            .ok()
+            .map(|k| s.by_in[k].1)
+    };
+    s.outs.clear();
+    s.outs.extend(corners.iter().map(|c| c.e_out));
+    s.outs.sort_unstable();
+    // Start at a corner whose e_in has no face before it (a boundary).
     let start = corners
         .iter()
-        .position(|c| {
-            mesh.edge_face_count(c.e_in) == 1 || !corners.iter().any(|d| d.e_out == c.e_in)
-        })
+        .position(|c| mesh.edge_face_count(c.e_in) == 1 || s.outs.binary_search(&c.e_in).is_err())
         .unwrap_or(0);
-    let mut order = vec![corners[start]];
+    let base = out.len();
+    out.push(corners[start]);
     let mut closed = false;
     loop {
-        let last = *order.last().unwrap();
-        match by_in.get(&last.e_out) {
-            Some(&i) if i == start => {
+        let last = *out.last().unwrap();
+        match by_in(last.e_out) {
+            Some(i) if i == start => {
                 closed = true;
                 break;
             }
-            Some(&i) if order.len() < corners.len() => order.push(corners[i]),
+            Some(i) if out.len() - base < corners.len() => out.push(corners[i]),
             _ => break,
         }
     }
-    if order.len() != corners.len() {
+    if out.len() - base != corners.len() {
         return Err(non_manifold());
     }
-    Ok(Fan {
-        corners: order,
-        closed,
-    })
+    Ok(closed)
 }
 
 struct Context<'a> {
     mesh: &'a Mesh,
     options: &'a Bevel,
-    beveled: &'a FxHashSet<EdgeId>,
+    beveled: &'a SlotSet,
+    /// The beveled edges, in id order.
+    bands: &'a [EdgeId],
+    fans: &'a Fans,
+    /// A fan corner's index by its face's loop at the centre.
+    corner_of_loop: &'a SideTable<usize>,
     /// The profile's points in the unit square, (1,0) to (0,1).
     chords: Vec<(f64, f64)>,
 }
@@ -301,53 +381,106 @@ struct Context<'a> {
 struct Plan {
     /// New points: position and the vertex whose attributes they take.
     points: Vec<(DVec3, VertId)>,
+    /// Every list of points the plan holds, back to back (one vector, not
+    /// one per ring and profile).
+    pts: Vec<Pt>,
     /// The ring each face around a beveled vertex gets.
-    rings: Vec<(FaceId, Vec<Pt>)>,
+    rings: Vec<(FaceId, Span)>,
     /// New faces and the face whose attributes they copy.
-    faces: Vec<(Vec<Pt>, FaceId)>,
+    faces: Vec<(Span, FaceId)>,
     /// The largest factor of the offsets at which nothing overlaps.
     overlap_limit: f64,
 }
 
-/// What one vertex contributes: the points replacing it in each face
-/// corner, the profile across each beveled edge (from the corner before
-/// it in the fan to the one after), and where slid edges end.
-#[derive(Default)]
-struct VertexPlan {
-    corner: Vec<Vec<Pt>>,
-    /// Per fan corner: the profile across its `e_out`, if beveled.
-    arc: Vec<Option<Vec<Pt>>>,
-    /// False when the hole is already closed (a terminal edge's profile
-    /// taken into the face across from it).
-    cap: bool,
+/// What the plan gathers vertex by vertex: per fan corner (indexed as in
+/// [`Fans`]) the points replacing the vertex in its face, and the profile
+/// across its `e_out` if beveled (from the corner before it in the fan to
+/// the one after).
+struct Gathered {
+    points: Vec<(DVec3, VertId)>,
+    pts: Vec<Pt>,
+    corner: Vec<Span>,
+    arc: Vec<Option<Span>>,
+    reach: Reach,
+    /// Scratch per vertex: where its non-beveled edges end (by fan edge),
+    /// and its distinct corner points.
+    end: Vec<Option<Pt>>,
+    distinct: Vec<Pt>,
+}
+
+/// Along each edge, how far each end's new points reach (summed).
+struct Reach {
+    along: SideTable<f64>,
+    touched: Vec<EdgeId>,
+}
+
+impl Reach {
+    fn add(&mut self, e: EdgeId, t: f64) {
+        if !self.along.contains(e.index()) {
+            self.along.insert(e.index(), 0.0);
+            self.touched.push(e);
+        }
+        *self.along.get_mut(e.index()).expect("inserted") += t.max(0.0);
+    }
+}
+
+/// Ends the list of points from `start` to the arena's end without
+/// consecutive repeats (first and last count as consecutive): its span.
+fn close_ring(pts: &mut Vec<Pt>, start: usize) -> Span {
+    let mut end = start;
+    for i in start..pts.len() {
+        if end == start || pts[i] != pts[end - 1] {
+            pts[end] = pts[i];
+            end += 1;
+        }
+    }
+    pts.truncate(end);
+    while pts.len() - start > 1 && pts[start] == pts[pts.len() - 1] {
+        pts.pop();
+    }
+    Span::of(pts, start)
 }
 
 impl Context<'_> {
-    fn plan(&self, centres: &[VertId], fans: &[Fan], scale: f64) -> Result<Plan, OpError> {
-        let mut points: Vec<(DVec3, VertId)> = Vec::new();
-        let mut per_vertex: Vec<VertexPlan> = Vec::with_capacity(centres.len());
-        let mut limit = f64::INFINITY;
-        // Along each edge, how far each end's new points reach.
-        let mut reach: FxHashMap<EdgeId, f64> = FxHashMap::default();
-        let mut ends: FxHashMap<(EdgeId, VertId), Vec<Pt>> = FxHashMap::default();
-        for (&v, fan) in centres.iter().zip(fans) {
-            let vp = self.plan_vertex(v, fan, scale, &mut points, &mut reach)?;
-            for (i, c) in fan.corners.iter().enumerate() {
-                if let Some(arc) = &vp.arc[i] {
-                    ends.insert((c.e_out, v), arc.clone());
-                }
-            }
-            per_vertex.push(vp);
+    fn bev(&self, e: EdgeId) -> bool {
+        self.beveled.contains(e.index())
+    }
+
+    fn plan(&self, centres: &[VertId], scale: f64) -> Result<Plan, OpError> {
+        let fans = self.fans;
+        let total = fans.corners.len();
+        let mut g = Gathered {
+            points: Vec::new(),
+            pts: Vec::new(),
+            corner: vec![Span::default(); total],
+            arc: vec![None; total],
+            reach: Reach {
+                along: SideTable::new(total + centres.len(), self.mesh.edge_capacity()),
+                touched: Vec::new(),
+            },
+            end: Vec::new(),
+            distinct: Vec::new(),
+        };
+        let mut cap: Vec<bool> = Vec::with_capacity(centres.len());
+        for (i, &v) in centres.iter().enumerate() {
+            cap.push(self.plan_vertex(v, fans.get(i), fans.heads[i].0, scale, &mut g)?);
         }
-        for (&e, &used) in &reach {
+        let mut limit = f64::INFINITY;
+        for &e in &g.reach.touched {
+            let used = *g.reach.along.get(e.index()).expect("touched");
             let length = self.mesh.edge_length(e);
             if used > length * (1.0 + 1e-12) {
                 limit = limit.min(length / used);
             }
         }
+        let Gathered {
+            mut points,
+            mut pts,
+            corner,
+            arc,
+            ..
+        } = g;
         // Rings of the faces around beveled vertices.
-        let index: FxHashMap<VertId, usize> =
-            centres.iter().enumerate().map(|(i, &v)| (v, i)).collect();
         let mut affected: Vec<FaceId> = centres
             .iter()
             .flat_map(|&v| self.mesh.vert_faces(v))
@@ -355,22 +488,15 @@ impl Context<'_> {
         affected = into_canonical(affected);
         let mut rings = Vec::with_capacity(affected.len());
         for &f in &affected {
-            let mut ring: Vec<Pt> = Vec::new();
-            for x in self.mesh.face_verts(f) {
-                match index.get(&x) {
-                    Some(&i) => {
-                        let k = fans[i]
-                            .corners
-                            .iter()
-                            .position(|c| c.face == f)
-                            .expect("the fan holds each face at its vertex");
-                        ring.extend_from_slice(&per_vertex[i].corner[k]);
-                    }
-                    None => ring.push(Pt::Old(x)),
+            let start = pts.len();
+            for l in self.mesh.face_loops(f) {
+                match self.corner_of_loop.get(l.index()) {
+                    Some(&k) => pts.extend_from_within(corner[k].range()),
+                    None => pts.push(Pt::Old(self.mesh.loop_vert(l))),
                 }
             }
-            let ring = cyclic_dedup(ring);
-            if ring.len() < 3 {
+            let ring = close_ring(&mut pts, start);
+            if ring.len < 3 {
                 return Err(OpError::Degenerate(format!(
                     "bevel: face {} would collapse (a width larger than the face allows; \
                      set `clamp_overlap = true` or a smaller width)",
@@ -379,34 +505,60 @@ impl Context<'_> {
             }
             rings.push((f, ring));
         }
-        let mut faces: Vec<(Vec<Pt>, FaceId)> = Vec::new();
-        // Bands along beveled edges, in edge order.
-        let mut bands: Vec<EdgeId> = self.beveled.iter().copied().collect();
-        bands = into_canonical(bands);
-        for &e in &bands {
+        let mut faces: Vec<(Span, FaceId)> = Vec::new();
+        // Bands along beveled edges, in edge order. The profile at each end
+        // is the one of the corner whose face leaves that end along the edge.
+        for &e in self.bands {
+            let end_arc = |x: VertId| {
+                let l = self
+                    .mesh
+                    .edge_loops(e)
+                    .find(|&l| self.mesh.loop_vert(l) == x)?;
+                arc[*self.corner_of_loop.get(l.index())?]
+            };
             let [u, w] = self.mesh.edge_verts(e);
-            let (Some(pu), Some(pw)) = (ends.get(&(e, u)), ends.get(&(e, w))) else {
+            let (Some(pu), Some(pw)) = (end_arc(u), end_arc(w)) else {
                 continue;
             };
-            let n = pu.len() - 1;
+            debug_assert_eq!(pu.len, pw.len);
+            let n = pu.len - 1;
             let source = self
                 .mesh
                 .edge_faces(e)
                 .min()
                 .expect("a beveled edge has two faces");
             for k in 0..n {
-                let ring = cyclic_dedup(vec![pw[n - k], pu[k], pu[k + 1], pw[n - k - 1]]);
-                if ring.len() >= 3 {
+                let quad = [
+                    pw.at(&pts, n - k),
+                    pu.at(&pts, k),
+                    pu.at(&pts, k + 1),
+                    pw.at(&pts, n - k - 1),
+                ];
+                let start = pts.len();
+                pts.extend_from_slice(&quad);
+                let ring = close_ring(&mut pts, start);
+                if ring.len >= 3 {
                     faces.push((ring, source));
+                } else {
+                    pts.truncate(start);
                 }
             }
         }
         // The corner faces at each vertex.
         for (i, &v) in centres.iter().enumerate() {
-            self.corner_faces(v, &fans[i], &per_vertex[i], &mut points, &mut faces);
+            let base = fans.heads[i].0;
+            let fan = fans.get(i);
+            let k = fan.corners.len();
+            let here = Here {
+                corner: &corner[base..base + k],
+                arc: &arc[base..base + k],
+                cap: cap[i],
+            };
+            self.corner_faces(v, fan, here, &mut points, &mut pts, &mut faces);
         }
         Ok(Plan {
             points,
+            pts,
             rings,
             faces,
             overlap_limit: limit,
@@ -459,56 +611,72 @@ impl Context<'_> {
         }
     }
 
+    /// Plans the corners (and profiles) of `v`, whose fan corners start at
+    /// `base` in [`Fans`]; false when its hole needs no cap (already
+    /// closed: a terminal edge's profile taken into the face across from it).
     fn plan_vertex(
         &self,
         v: VertId,
-        fan: &Fan,
+        fan: Fan<'_>,
+        base: usize,
         scale: f64,
-        points: &mut Vec<(DVec3, VertId)>,
-        reach: &mut FxHashMap<EdgeId, f64>,
-    ) -> Result<VertexPlan, OpError> {
+        g: &mut Gathered,
+    ) -> Result<bool, OpError> {
         let mesh = self.mesh;
         let pv = mesh.position(v);
         let k = fan.corners.len();
         let dir = |x: VertId| (mesh.position(x) - pv).normalize_or_zero();
-        let mut plan = VertexPlan {
-            corner: vec![Vec::new(); k],
-            arc: vec![None; k],
-            cap: true,
-        };
         let n = self.options.segments as usize;
+        // The fan's edges: edge j sits between corner j-1 (its e_out) and
+        // corner j (its e_in); an open fan has one more, the last e_out.
+        // Corner i's e_in is edge i, its e_out edge (i + 1) % m.
+        let m = if fan.closed { k } else { k + 1 };
+        let edge_at = |j: usize| -> (EdgeId, VertId) {
+            if j < k {
+                (fan.corners[j].e_in, fan.corners[j].prev)
+            } else {
+                (fan.corners[k - 1].e_out, fan.corners[k - 1].next)
+            }
+        };
+        g.end.clear();
+        g.end.resize(m, None);
         if self.options.affect == Affect::Vertices {
             // Every edge slides: its new end at `width` along it.
-            let mut slid: FxHashMap<EdgeId, Pt> = FxHashMap::default();
-            let mut slide = |e: EdgeId, x: VertId, points: &mut Vec<(DVec3, VertId)>| -> Pt {
-                if let Some(&p) = slid.get(&e) {
-                    return p;
+            for i in 0..k {
+                let mut pair = [Pt::Old(v); 2];
+                for (s, j) in [i, (i + 1) % m].into_iter().enumerate() {
+                    pair[s] = match g.end[j] {
+                        Some(p) => p,
+                        None => {
+                            let (e, x) = edge_at(j);
+                            let t = match self.options.offset_type {
+                                OffsetType::Percent => {
+                                    mesh.edge_length(e) * self.options.width * scale / 100.0
+                                }
+                                _ => self.options.width * scale,
+                            };
+                            g.reach.add(e, t);
+                            let p = new_point_into(&mut g.points, v, pv + dir(x) * t);
+                            g.end[j] = Some(p);
+                            p
+                        }
+                    };
                 }
-                let t = match self.options.offset_type {
-                    OffsetType::Percent => mesh.edge_length(e) * self.options.width * scale / 100.0,
-                    _ => self.options.width * scale,
-                };
-                add_reach(reach, e, t);
-                let p = new_point_into(points, v, pv + dir(x) * t);
-                slid.insert(e, p);
-                p
-            };
-            for (i, c) in fan.corners.iter().enumerate() {
-                let a = slide(c.e_in, c.prev, points);
-                let b = slide(c.e_out, c.next, points);
-                let mut list = vec![a];
-                let (pa, pb) = (position(points, a, mesh), position(points, b, mesh));
+                let [a, b] = pair;
+                let start = g.pts.len();
+                g.pts.push(a);
+                let (pa, pb) = (position(&g.points, a, mesh), position(&g.points, b, mesh));
                 for j in 1..n {
                     let p = self.profile_point(pa, pb, pv, j);
-                    list.push(new_point_into(points, v, p));
+                    g.pts.push(new_point_into(&mut g.points, v, p));
                 }
-                list.push(b);
-                plan.corner[i] = list;
+                g.pts.push(b);
+                g.corner[base + i] = Span::of(&g.pts, start);
             }
-            return Ok(plan);
+            return Ok(true);
         }
 
-        let bev = |e: EdgeId| self.beveled.contains(&e);
+        let bev = |e: EdgeId| self.bev(e);
         // The offset line of beveled edge `e` (to `x`) in face `f` meets
         // the line of edge (v, y) at distance t along it.
         let slide_t = |e: EdgeId, x: VertId, f: FaceId, y: VertId| {
@@ -520,20 +688,9 @@ impl Context<'_> {
                 off / s
             }
         };
-        // Where each non-beveled edge at v ends (by fan index of the
-        // corner whose e_out it is, or e_in of the first for open fans).
-        let mut end: FxHashMap<EdgeId, Pt> = FxHashMap::default();
-        let edges_in_order: Vec<(EdgeId, VertId)> = {
-            let mut list: Vec<(EdgeId, VertId)> =
-                fan.corners.iter().map(|c| (c.e_in, c.prev)).collect();
-            if !fan.closed {
-                let last = fan.corners[k - 1];
-                list.push((last.e_out, last.next));
-            }
-            list
-        };
-        // Edge j sits between corner j-1 (its e_out) and corner j (its e_in).
-        for (j, &(e, x)) in edges_in_order.iter().enumerate() {
+        // Where each non-beveled edge at v ends.
+        for j in 0..m {
+            let (e, x) = edge_at(j);
             if bev(e) {
                 continue;
             }
@@ -545,27 +702,31 @@ impl Context<'_> {
                 None
             };
             let after = fan.corners.get(j).copied();
-            let mut ts = Vec::new();
+            let mut ts = [0.0; 2];
+            let mut count = 0;
             if let Some(c) = before.filter(|c| bev(c.e_in)) {
-                ts.push(slide_t(c.e_in, c.prev, c.face, x));
+                ts[count] = slide_t(c.e_in, c.prev, c.face, x);
+                count += 1;
             }
             if let Some(c) = after.filter(|c| bev(c.e_out)) {
-                ts.push(slide_t(c.e_out, c.next, c.face, x));
+                ts[count] = slide_t(c.e_out, c.next, c.face, x);
+                count += 1;
             }
-            if ts.is_empty() {
-                end.insert(e, Pt::Old(v));
+            if count == 0 {
+                g.end[j] = Some(Pt::Old(v));
                 continue;
             }
-            let t = ts.iter().sum::<f64>() / ts.len() as f64;
+            let t = ts[..count].iter().sum::<f64>() / count as f64;
             // Between two beveled edges the point stays on the edge (the
             // mean of where the two offset lines reach it); Blender takes
             // where the lines come closest, off the surface where it bends
             // and ill-conditioned where they run nearly parallel.
-            add_reach(reach, e, t);
-            end.insert(e, new_point_into(points, v, pv + dir(x) * t));
+            g.reach.add(e, t);
+            g.end[j] = Some(new_point_into(&mut g.points, v, pv + dir(x) * t));
         }
         for (i, c) in fan.corners.iter().enumerate() {
-            plan.corner[i] = if bev(c.e_in) && bev(c.e_out) {
+            let start = g.pts.len();
+            if bev(c.e_in) && bev(c.e_out) {
                 let off_in = self.offset_of(c.e_in, c.face, v, scale);
                 let off_out = self.offset_of(c.e_out, c.face, v, scale);
                 let p = meet(
@@ -576,101 +737,116 @@ impl Context<'_> {
                     off_in,
                     off_out,
                 );
-                vec![new_point_into(points, v, p)]
+                g.pts.push(new_point_into(&mut g.points, v, p));
             } else {
-                let mut list = Vec::new();
-                for e in [c.e_in, c.e_out] {
-                    if let Some(&p) = end.get(&e) {
-                        if list.last() != Some(&p) {
-                            list.push(p);
+                for j in [i, (i + 1) % m] {
+                    if let Some(p) = g.end[j] {
+                        if g.pts.len() == start || g.pts.last() != Some(&p) {
+                            g.pts.push(p);
                         }
                     }
                 }
-                list
-            };
+            }
+            g.corner[base + i] = Span::of(&g.pts, start);
         }
+        let corner = |g: &Gathered, i: usize| -> Span { g.corner[base + i] };
         // Two beveled edges whose bands meet at two points only (a ring of
         // edges turning a corner, or running straight through): one shared
         // profile between the bands, its middle at the vertex (Blender's
         // vertex with two boundary vertices), and no corner face.
-        let mut distinct: Vec<Pt> = plan.corner.iter().flatten().copied().collect();
-        distinct.sort_unstable_by_key(|p| match p {
+        g.distinct.clear();
+        for i in 0..k {
+            let s = corner(g, i);
+            g.distinct.extend_from_slice(s.get(&g.pts));
+        }
+        g.distinct.sort_unstable_by_key(|p| match p {
             Pt::Old(v) => (0, v.index() as u64),
             Pt::New(i) => (1, u64::from(*i)),
         });
-        distinct.dedup();
-        let bands: Vec<usize> = (0..k).filter(|&i| bev(fan.corners[i].e_out)).collect();
-        if fan.closed && bands.len() == 2 && distinct.len() == 2 {
-            let (i1, i2) = (bands[0], bands[1]);
-            let (a, b) = (
-                *plan.corner[i1].last().expect("a corner point"),
-                *plan.corner[(i1 + 1) % k].first().expect("a corner point"),
-            );
-            let (pa, pb) = (position(points, a, mesh), position(points, b, mesh));
-            let mut arc = vec![a];
+        g.distinct.dedup();
+        let beveled_here = (0..k).filter(|&i| bev(fan.corners[i].e_out)).count();
+        if fan.closed && beveled_here == 2 && g.distinct.len() == 2 {
+            let mut bands = (0..k).filter(|&i| bev(fan.corners[i].e_out));
+            let (i1, i2) = (bands.next().expect("two"), bands.next().expect("two"));
+            let a = *corner(g, i1).get(&g.pts).last().expect("a corner point");
+            let b = *corner(g, (i1 + 1) % k)
+                .get(&g.pts)
+                .first()
+                .expect("a corner point");
+            let (pa, pb) = (position(&g.points, a, mesh), position(&g.points, b, mesh));
+            let start = g.pts.len();
+            g.pts.push(a);
             for j in 1..n {
                 let p = self.profile_point(pa, pb, pv, j);
-                arc.push(new_point_into(points, v, p));
+                g.pts.push(new_point_into(&mut g.points, v, p));
             }
-            arc.push(b);
+            g.pts.push(b);
+            let arc = Span::of(&g.pts, start);
             for (i, e) in [(i1, fan.corners[i1].e_out), (i2, fan.corners[i2].e_out)] {
                 let along = dir(fan.corners[i].next);
-                add_reach(reach, e, (pa - pv).dot(along).max((pb - pv).dot(along)));
+                g.reach
+                    .add(e, (pa - pv).dot(along).max((pb - pv).dot(along)));
             }
-            plan.arc[i2] = Some(arc.iter().rev().copied().collect());
-            plan.arc[i1] = Some(arc);
-            plan.cap = false;
-            return Ok(plan);
+            // The second band reads the profile the other way.
+            let reversed = g.pts.len();
+            g.pts.extend_from_within(arc.range());
+            g.pts[reversed..].reverse();
+            g.arc[base + i2] = Some(Span::of(&g.pts, reversed));
+            g.arc[base + i1] = Some(arc);
+            return Ok(false);
         }
         // Profiles across beveled edges, from the corner before to the one after.
         for i in 0..k {
             let c = fan.corners[i];
-            if !bev(c.e_out) {
+            if !bev(c.e_out) || (i + 1 == k && !fan.closed) {
                 continue;
             }
-            let Some(d) = fan
-                .corners
-                .get((i + 1) % k)
-                .filter(|_| i + 1 < k || fan.closed)
-                .copied()
-            else {
+            let (Some(&a), Some(&b)) = (
+                corner(g, i).get(&g.pts).last(),
+                corner(g, (i + 1) % k).get(&g.pts).first(),
+            ) else {
                 continue;
             };
-            let (Some(&a), Some(&b)) = (plan.corner[i].last(), plan.corner[(i + 1) % k].first())
-            else {
-                continue;
-            };
-            debug_assert_eq!(d.e_in, c.e_out);
-            let (pa, pb) = (position(points, a, mesh), position(points, b, mesh));
+            debug_assert_eq!(fan.corners[(i + 1) % k].e_in, c.e_out);
+            let (pa, pb) = (position(&g.points, a, mesh), position(&g.points, b, mesh));
             // How far along the edge this end of the band reaches.
             let along = dir(c.next);
-            add_reach(
-                reach,
-                c.e_out,
-                (pa - pv).dot(along).max((pb - pv).dot(along)),
-            );
-            let mut arc = vec![a];
+            g.reach
+                .add(c.e_out, (pa - pv).dot(along).max((pb - pv).dot(along)));
+            let start = g.pts.len();
+            g.pts.push(a);
             let middle = nearest_on_line(pv, along, pa, pb);
             for j in 1..n {
                 let p = self.profile_point(pa, pb, middle, j);
-                arc.push(new_point_into(points, v, p));
+                g.pts.push(new_point_into(&mut g.points, v, p));
             }
-            arc.push(b);
-            plan.arc[i] = Some(arc);
+            g.pts.push(b);
+            g.arc[base + i] = Some(Span::of(&g.pts, start));
         }
         // A terminal edge at a corner of three faces: its profile becomes
         // part of the face across from it, as Blender does (no cap face
         // between a straight edge and the arc, in that face's plane).
-        let beveled_here = (0..k).filter(|&i| bev(fan.corners[i].e_out)).count();
-        let across: Vec<usize> = (0..k)
-            .filter(|&i| !bev(fan.corners[i].e_in) && !bev(fan.corners[i].e_out))
-            .collect();
-        if n > 1 && fan.closed && k == 3 && beveled_here == 1 && across.len() == 1 {
-            let arc = plan.arc.iter().flatten().next().expect("one beveled edge");
-            plan.corner[across[0]] = arc.iter().rev().copied().collect();
-            plan.cap = false;
+        let mut across =
+            (0..k).filter(|&i| !bev(fan.corners[i].e_in) && !bev(fan.corners[i].e_out));
+        let only_across = match (across.next(), across.next()) {
+            (Some(i), None) => Some(i),
+            _ => None,
+        };
+        if let Some(i) = only_across.filter(|_| n > 1 && fan.closed && k == 3 && beveled_here == 1)
+        {
+            let arc = g.arc[base..base + k]
+                .iter()
+                .flatten()
+                .next()
+                .copied()
+                .expect("one beveled edge");
+            let start = g.pts.len();
+            g.pts.extend_from_within(arc.range());
+            g.pts[start..].reverse();
+            g.corner[base + i] = Span::of(&g.pts, start);
+            return Ok(false);
         }
-        Ok(plan)
+        Ok(true)
     }
 
     /// Point `j` of the profile from `a` to `b` bulging toward `middle`.
@@ -685,15 +861,16 @@ impl Context<'_> {
     fn corner_faces(
         &self,
         v: VertId,
-        fan: &Fan,
-        plan: &VertexPlan,
+        fan: Fan<'_>,
+        here: Here<'_>,
         points: &mut Vec<(DVec3, VertId)>,
-        faces: &mut Vec<(Vec<Pt>, FaceId)>,
+        pts: &mut Vec<Pt>,
+        faces: &mut Vec<(Span, FaceId)>,
     ) {
         // A hole at an open vertex stays open, as Blender leaves it: a
         // face there would span the opening between a band's profile and
         // its chord.
-        if !plan.cap || !fan.closed {
+        if !here.cap || !fan.closed {
             return;
         }
         let k = fan.corners.len();
@@ -703,34 +880,34 @@ impl Context<'_> {
             && fan.closed
             && k >= 3
             && match self.options.affect {
-                Affect::Edges => (0..k).all(|i| plan.arc[i].is_some() && plan.corner[i].len() == 1),
+                Affect::Edges => (0..k).all(|i| here.arc[i].is_some() && here.corner[i].len == 1),
                 Affect::Vertices => true,
             };
         if regular {
             // Sides of the hole, each from one corner point to the next.
-            let sides: Vec<Vec<Pt>> = match self.options.affect {
-                Affect::Edges => (0..k)
-                    .map(|i| plan.arc[i].clone().expect("regular"))
-                    .collect(),
+            let sides: Vec<Span> = match self.options.affect {
+                Affect::Edges => here.arc.iter().map(|a| a.expect("regular")).collect(),
                 // The faces' arcs, e_in to e_out in each face.
-                Affect::Vertices => plan.corner.clone(),
+                Affect::Vertices => here.corner.to_vec(),
             };
-            self.grid_fill(v, &sides, points, faces, source);
+            self.grid_fill(v, &sides, points, pts, faces, source);
             return;
         }
         // In fan order: each corner's points, then the profile across its
         // e_out (vertex bevels: the faces' own arcs, in the corner lists).
-        let mut ring: Vec<Pt> = Vec::new();
+        let start = pts.len();
         for i in 0..k {
-            ring.extend_from_slice(&plan.corner[i]);
-            if let Some(arc) = &plan.arc[i] {
-                ring.extend_from_slice(&arc[1..arc.len() - 1]);
+            pts.extend_from_within(here.corner[i].range());
+            if let Some(arc) = here.arc[i] {
+                pts.extend_from_within(arc.start + 1..arc.start + arc.len - 1);
             }
         }
-        let mut ring = cyclic_dedup(ring);
-        if ring.len() >= 3 {
-            ring.reverse();
+        let ring = close_ring(pts, start);
+        if ring.len >= 3 {
+            pts[start..].reverse();
             faces.push((ring, source));
+        } else {
+            pts.truncate(start);
         }
     }
 
@@ -741,18 +918,21 @@ impl Context<'_> {
     fn grid_fill(
         &self,
         v: VertId,
-        sides: &[Vec<Pt>],
+        sides: &[Span],
         points: &mut Vec<(DVec3, VertId)>,
-        faces: &mut Vec<(Vec<Pt>, FaceId)>,
+        pts: &mut Vec<Pt>,
+        faces: &mut Vec<(Span, FaceId)>,
         source: FaceId,
     ) {
         let mesh = self.mesh;
         let m = sides.len();
-        let n = sides[0].len() - 1;
+        let n = sides[0].len - 1;
         let h = n / 2;
         let pv = mesh.position(v);
-        let pos = |points: &Vec<(DVec3, VertId)>, p: Pt| position(points, p, mesh);
-        let corners: Vec<DVec3> = sides.iter().map(|s| pos(points, s[0])).collect();
+        let corners: Vec<DVec3> = sides
+            .iter()
+            .map(|s| position(points, s.at(pts, 0), mesh))
+            .collect();
         // The superellipsoid's centre and the point of it toward v.
         let o = pv + corners.iter().map(|&b| b - pv).sum::<DVec3>() / (m as f64 - 1.0);
         let r = profile_exponent(self.options.profile);
@@ -762,107 +942,119 @@ impl Context<'_> {
             libm::pow(m as f64, -1.0 / r)
         };
         let centre = o + (pv - o) * towards;
-        let new_point = |points: &mut Vec<(DVec3, VertId)>, p: DVec3| new_point_into(points, v, p);
         let odd = n % 2 == 1;
         // c[i]: the inner corner of corner i's grid.
         let c: Vec<Pt> = if odd {
             (0..m)
-                .map(|i| new_point(points, centre + (corners[i] - centre) / n as f64))
+                .map(|i| new_point_into(points, v, centre + (corners[i] - centre) / n as f64))
                 .collect()
         } else {
-            let p = new_point(points, centre);
+            let p = new_point_into(points, v, centre);
             vec![p; m]
         };
         // Spokes: from side i's point h (and n-h) to the inner corners.
-        let spoke = |points: &mut Vec<(DVec3, VertId)>, from: Pt, to: Pt| -> Vec<Pt> {
+        let spoke = |points: &mut Vec<(DVec3, VertId)>, pts: &mut Vec<Pt>, from: Pt, to: Pt| {
             let (a, b) = (position(points, from, mesh), position(points, to, mesh));
-            let mut list = vec![from];
+            let start = pts.len();
+            pts.push(from);
             for t in 1..h {
-                list.push(new_point_into(
+                pts.push(new_point_into(
                     points,
                     v,
                     a + (b - a) * (t as f64 / h as f64),
                 ));
             }
-            list.push(to);
-            list
+            pts.push(to);
+            Span::of(pts, start)
         };
         // spoke_a[i]: side i's point h to c[i]; spoke_b[i]: side i's point
         // n-h to c[i+1] (the same as spoke_a for even n).
         let mut spoke_a = Vec::with_capacity(m);
         let mut spoke_b = Vec::with_capacity(m);
         for i in 0..m {
-            let a = spoke(points, sides[i][h], c[i]);
+            let a = spoke(points, pts, sides[i].at(pts, h), c[i]);
             let b = if odd {
-                spoke(points, sides[i][n - h], c[(i + 1) % m])
+                spoke(points, pts, sides[i].at(pts, n - h), c[(i + 1) % m])
             } else {
-                a.clone()
+                a
             };
             spoke_a.push(a);
             spoke_b.push(b);
         }
+        // A quad, reversed (the corner's faces face away from the fan).
+        let mut quad = |pts: &mut Vec<Pt>, mut ring: [Pt; 4]| {
+            ring.reverse();
+            let start = pts.len();
+            pts.extend_from_slice(&ring);
+            faces.push((Span::of(pts, start), source));
+        };
+        // grid[p * (h + 1) + q]: p along side `prev` backwards, q along side i.
+        let w = h + 1;
+        let mut grid = vec![Pt::Old(v); w * w];
         for i in 0..m {
             let prev = (i + m - 1) % m;
-            // grid[p][q]: p along side `prev` backwards, q along side i.
-            let mut grid = vec![vec![Pt::Old(v); h + 1]; h + 1];
             for q in 0..=h {
-                grid[0][q] = sides[i][q];
-                grid[h][q] = spoke_b[prev][q];
+                grid[q] = sides[i].at(pts, q);
+                grid[h * w + q] = spoke_b[prev].at(pts, q);
             }
             for p in 0..=h {
-                grid[p][0] = sides[prev][n - p];
-                grid[p][h] = spoke_a[i][p];
+                grid[p * w] = sides[prev].at(pts, n - p);
+                grid[p * w + h] = spoke_a[i].at(pts, p);
             }
             for p in 1..h {
                 for q in 1..h {
                     let (s, t) = (p as f64 / h as f64, q as f64 / h as f64);
-                    let g = |pt: Pt| position(points, pt, mesh);
-                    let value = (1.0 - s) * g(grid[0][q])
-                        + s * g(grid[h][q])
-                        + (1.0 - t) * g(grid[p][0])
-                        + t * g(grid[p][h])
-                        - ((1.0 - s) * (1.0 - t) * g(grid[0][0])
-                            + (1.0 - s) * t * g(grid[0][h])
-                            + s * (1.0 - t) * g(grid[h][0])
-                            + s * t * g(grid[h][h]));
-                    grid[p][q] = new_point(points, value);
+                    let at = |pp: usize, qq: usize| position(points, grid[pp * w + qq], mesh);
+                    let value =
+                        (1.0 - s) * at(0, q) + s * at(h, q) + (1.0 - t) * at(p, 0) + t * at(p, h)
+                            - ((1.0 - s) * (1.0 - t) * at(0, 0)
+                                + (1.0 - s) * t * at(0, h)
+                                + s * (1.0 - t) * at(h, 0)
+                                + s * t * at(h, h));
+                    grid[p * w + q] = new_point_into(points, v, value);
                 }
             }
             for p in 0..h {
                 for q in 0..h {
-                    let mut ring = vec![
-                        grid[p][q],
-                        grid[p][q + 1],
-                        grid[p + 1][q + 1],
-                        grid[p + 1][q],
-                    ];
-                    ring.reverse();
-                    faces.push((ring, source));
+                    quad(
+                        pts,
+                        [
+                            grid[p * w + q],
+                            grid[p * w + q + 1],
+                            grid[(p + 1) * w + q + 1],
+                            grid[(p + 1) * w + q],
+                        ],
+                    );
                 }
             }
             if odd {
                 for t in 0..h {
-                    let mut ring = vec![
-                        spoke_a[i][t],
-                        spoke_b[i][t],
-                        spoke_b[i][t + 1],
-                        spoke_a[i][t + 1],
+                    let (a, b) = (spoke_a[i], spoke_b[i]);
+                    let ring = [
+                        a.at(pts, t),
+                        b.at(pts, t),
+                        b.at(pts, t + 1),
+                        a.at(pts, t + 1),
                     ];
-                    ring.reverse();
-                    faces.push((ring, source));
+                    quad(pts, ring);
                 }
             }
         }
         if odd {
-            let mut ring = c;
-            ring.reverse();
-            faces.push((ring, source));
+            let start = pts.len();
+            pts.extend(c.iter().rev());
+            faces.push((Span::of(pts, start), source));
         }
     }
 }
 
-fn add_reach(reach: &mut FxHashMap<EdgeId, f64>, e: EdgeId, t: f64) {
-    *reach.entry(e).or_insert(0.0) += t.max(0.0);
+/// One vertex's part of the plan: its fan corners' points and profiles,
+/// and whether its hole gets a cap.
+#[derive(Clone, Copy)]
+struct Here<'a> {
+    corner: &'a [Span],
+    arc: &'a [Option<Span>],
+    cap: bool,
 }
 
 fn new_point_into(points: &mut Vec<(DVec3, VertId)>, v: VertId, p: DVec3) -> Pt {
@@ -875,15 +1067,6 @@ fn position(points: &[(DVec3, VertId)], p: Pt, mesh: &Mesh) -> DVec3 {
         Pt::Old(v) => mesh.position(v),
         Pt::New(i) => points[i as usize].0,
     }
-}
-
-/// `ring` without consecutive repeats (first and last count as consecutive).
-fn cyclic_dedup(mut ring: Vec<Pt>) -> Vec<Pt> {
-    ring.dedup();
-    while ring.len() > 1 && ring.first() == ring.last() {
-        ring.pop();
-    }
-    ring
 }
 
 /// The angle between two vectors, robust near 0 and π.
@@ -1072,29 +1255,26 @@ fn build(mesh: &mut Mesh, centres: &[VertId], plan: Plan) -> Result<Selection, O
         Pt::Old(v) => v,
         Pt::New(i) => ids[i as usize],
     };
-    for (f, ring) in &plan.rings {
-        let ring: Vec<VertId> = ring.iter().map(|&p| vert(p)).collect();
+    // One buffer for every ring's vertices.
+    let mut ring: Vec<VertId> = Vec::new();
+    let rings = plan.rings.iter().map(|&(f, s)| (s, f));
+    for (span, from) in rings.chain(plan.faces.iter().copied()) {
+        ring.clear();
+        ring.extend(span.get(&plan.pts).iter().map(|&p| vert(p)));
         let g = mesh.make_face(&ring)?;
-        mesh.copy_face_attrs(*f, g);
+        mesh.copy_face_attrs(from, g);
         made.faces.push(g);
     }
-    for (ring, from) in &plan.faces {
-        let ring: Vec<VertId> = ring.iter().map(|&p| vert(p)).collect();
-        let g = mesh.make_face(&ring)?;
-        mesh.copy_face_attrs(*from, g);
-        made.faces.push(g);
-    }
-    for (f, _) in &plan.rings {
-        mesh.kill_face(*f)?;
+    for &(f, _) in &plan.rings {
+        mesh.kill_face(f)?;
     }
     // Edges at the beveled vertices that lost their faces (beveled and
     // slid edges) go; so do the vertices left with nothing.
+    let mut dead: Vec<EdgeId> = Vec::new();
     for &v in centres {
-        let dead: Vec<EdgeId> = mesh
-            .vert_edges(v)
-            .filter(|&e| mesh.edge_face_count(e) == 0)
-            .collect();
-        for e in dead {
+        dead.clear();
+        dead.extend(mesh.vert_edges(v).filter(|&e| mesh.edge_face_count(e) == 0));
+        for &e in &dead {
             if mesh.contains_edge(e) {
                 mesh.kill_edge(e)?;
             }
