@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender test-qhull fuzz fuzz-smoke clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender test-qhull test-boolean fuzz fuzz-smoke clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -80,6 +80,16 @@ test-blender:
 test-qhull:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal tests/qhull/run.sh
+
+## `boolean` against manifold3d (tests/boolean/run.sh: union, difference and
+## intersection of 100 random pairs of cubes, boxes and spheres, overlapping,
+## disjoint or nested, and of coplanar cubes, which may be refused: volume to
+## 1e-9, closed and edge-manifold, components and genus; a Python venv with
+## numpy and manifold3d from PyPI is made under target/ the first time,
+## ~20 s). Not part of `make test`; CI (`.ci/run`) runs it after.
+test-boolean:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal tests/boolean/run.sh
 
 ## Fuzz smoke (fuzz/smoke.sh): builds the libFuzzer targets (cargo-fuzz on
 ## stable, RUSTC_BOOTSTRAP=1), replays every committed regression and seed of

@@ -45,7 +45,7 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
     let edges: Vec<EdgeId> = mesh.edge_ids().collect();
     let faces: Vec<FaceId> = mesh.face_ids().collect();
     let big = mesh.vert_count() > 400;
-    let choice = rng.below(33);
+    let choice = rng.below(34);
     match choice {
         0 => {
             mesh.make_vert(rng.point());
@@ -325,6 +325,51 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                 );
             }
             "bevel"
+        }
+        32 => {
+            if !big {
+                use graftal::kernel::ops::boolean::{boolean, BooleanOperation};
+                // Two boxes turned at random (closed shells in general
+                // position, or touching where a draw makes them), or random
+                // face subsets of the mesh (mostly open: refused).
+                let shell = |mesh: &mut graftal::kernel::Mesh, rng: &mut Rng| {
+                    let (centre, size, turn) = (rng.point() * 0.5, 0.3 + rng.unit(), rng.point());
+                    let corner = |i: usize| {
+                        let p = glam::DVec3::new(
+                            if i & 1 == 0 { -0.5 } else { 0.5 },
+                            if i & 2 == 0 { -0.5 } else { 0.5 },
+                            if i & 4 == 0 { -0.5 } else { 0.5 },
+                        ) * size;
+                        let p = glam::DQuat::from_scaled_axis(turn) * p;
+                        p + centre
+                    };
+                    let v: Vec<_> = (0..8).map(|i| mesh.make_vert(corner(i))).collect();
+                    [
+                        [0, 2, 3, 1],
+                        [4, 5, 7, 6],
+                        [0, 1, 5, 4],
+                        [2, 6, 7, 3],
+                        [0, 4, 6, 2],
+                        [1, 3, 7, 5],
+                    ]
+                    .iter()
+                    .map(|q| mesh.make_face(&q.map(|i| v[i])).unwrap())
+                    .collect::<Vec<_>>()
+                };
+                let (a, b) = if rng.below(3) == 0 {
+                    (some(rng, &faces, 6), some(rng, &faces, 6))
+                } else {
+                    (shell(mesh, rng), shell(mesh, rng))
+                };
+                let b: Vec<_> = b.into_iter().filter(|f| !a.contains(f)).collect();
+                let operation = [
+                    BooleanOperation::Union,
+                    BooleanOperation::Difference,
+                    BooleanOperation::Intersection,
+                ][rng.below(3)];
+                let _ = boolean(mesh, &a, &b, operation);
+            }
+            "boolean"
         }
         _ => {
             match rng.below(3) {

@@ -269,6 +269,67 @@ fn a_hull_wraps_grown_geometry_and_flat_selections_are_errors() {
 }
 
 #[test]
+fn a_wall_cut_by_windows_and_a_drill_has_the_volume_and_genus_it_should() {
+    let d = tempfile::tempdir().unwrap();
+    let rules = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/operators/boolean-cut.toml"),
+    )
+    .unwrap();
+    let s = stats(d.path(), &rules);
+    let m = &s["mesh"];
+    assert_eq!(m["watertight"], true);
+    assert_eq!(m["components"], 1);
+    // Three holes through one solid: V - E + F = 2 - 2 * 3.
+    assert_eq!(m["euler_characteristic"], -4, "{m}");
+    // A 4 x 0.3 x 2.5 slab less two 0.8 x 1.1 windows and a 24-gon of
+    // radius 0.35, each 0.3 deep.
+    let polygon = 12.0 * 0.35f64 * 0.35 * (15f64).to_radians().sin();
+    let expected = 3.0 - 0.3 * (2.0 * 0.8 * 1.1 + polygon);
+    let volume = m["volume"].as_f64().unwrap();
+    assert!((volume - expected).abs() < 1e-12, "{volume} {expected}");
+    // Union: the ball keeps its material where it stands out of the box.
+    let rules = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/operators/boolean-union.toml"),
+    )
+    .unwrap();
+    std::fs::write(d.path().join("u.toml"), &rules).unwrap();
+    let o = graftal_in(d.path(), &["run", "u.toml", "-o", "u.obj"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let obj = std::fs::read_to_string(d.path().join("u.obj")).unwrap();
+    assert!(obj.contains("usemtl brass"), "{obj}");
+    // Touching boxes: a located refusal naming the contact, nothing written.
+    std::fs::write(
+        d.path().join("t.toml"),
+        "[start]\ncube = {}\n[[step]]\nname = \"b\"\ncube = {}\npart = \"b\"\n\
+         [[step]]\nfrom = \"b\"\non = \"vertices\"\ntranslate = { offset = [1, 0.5, 0.5] }\n\
+         [[step]]\nboolean = { operation = \"union\", with = \"b\" }\n",
+    )
+    .unwrap();
+    let o = graftal_in(d.path(), &["run", "t.toml", "-o", "t.obj"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("t.toml:12:1") && stderr(&o).contains("touch without crossing"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.path().join("t.obj").exists());
+    // An open operand: how many boundary edges.
+    std::fs::write(
+        d.path().join("o.toml"),
+        "[start]\ngrid = {}\n[[step]]\nname = \"b\"\ncube = {}\npart = \"b\"\n\
+         [[step]]\nboolean = { with = \"b\" }\n",
+    )
+    .unwrap();
+    let o = graftal_in(d.path(), &["run", "o.toml", "-o", "o.obj"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("o.toml:8:1") && stderr(&o).contains("4 boundary edges"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn the_pieces_keep_their_part_and_material() {
     let d = tempfile::tempdir().unwrap();
     let rules = r##"
@@ -447,6 +508,8 @@ fn the_documentation_pictures_rule_files_run() {
         "subdivide-creased",
         "solidify-shell",
         "spin-vase",
+        "boolean-cut",
+        "boolean-union",
     ] {
         let d = tempfile::tempdir().unwrap();
         let rules = std::fs::read_to_string(dir.join(format!("{shell}.toml"))).unwrap();

@@ -25,6 +25,7 @@
 //! - [`union_find`], [`names`] (the "did you mean" of every message) and
 //!   [`edge_key`] (one `u64` key for an edge between two vertex ids).
 
+pub mod boolean;
 pub mod boxes;
 pub mod cells;
 pub mod edge_key;

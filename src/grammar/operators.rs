@@ -18,11 +18,11 @@ use crate::kernel::ops::{self, Selection};
 use crate::kernel::{AttrValue, Domain, EdgeId, FaceId, Mesh, VertId};
 use crate::rules::expr::Expr;
 use crate::rules::op_args::{
-    Adjacency, Axis, BevelOffset, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod, SubdivisionBoundary,
-    SubdivisionScheme, UpAxis,
+    Adjacency, Axis, BevelOffset, BooleanOp, DeleteKind, ExtrudeArgs, OpArgs, SkinMethod,
+    SubdivisionBoundary, SubdivisionScheme, UpAxis,
 };
 use crate::rules::operators::Reads;
-use crate::rules::program::{Call, Resource, Vector};
+use crate::rules::program::{Call, Resource, Vector, PART_LAYER};
 use crate::rules::sdf_tree::SdfForest;
 use rustc_hash::FxHashMap;
 
@@ -243,6 +243,9 @@ pub(super) fn predicted_growth(ctx: &Context, mesh: &Mesh, call: &Call, selected
         // quad (two edges) per boundary edge.
         // A hull of n points: n vertices, 3n − 6 edges, 2n − 4 faces at most.
         OpArgs::ConvexHull { .. } => m(vert_count(), 6),
+        // Pieces of cut faces: a few triangles per crossing; bounded by
+        // eight per face of the whole mesh for the estimate.
+        OpArgs::Boolean { .. } => m(mesh.face_count() as u64, 8),
         // A copy of each profile vertex per step, a quad (and two edges)
         // per profile edge and step.
         OpArgs::Spin { steps, .. } => m(
@@ -662,6 +665,34 @@ pub(super) fn apply(
             ops::bevel::bevel(mesh, &by_domain.edges, &by_domain.verts, options)?
         }
         OpArgs::ConvexHull { triangulate } => ops::hull::convex_hull(mesh, &verts, *triangulate)?,
+        OpArgs::Boolean { operation, with } => {
+            use ops::boolean::BooleanOperation as Operation;
+            let part_of = super::asset::int_layer(mesh, PART_LAYER, Domain::Face, 0);
+            let others: Vec<FaceId> = mesh
+                .face_ids()
+                .filter(|f| part_of(f.index()) == *with as i32)
+                .collect();
+            let own: Vec<FaceId> = faces_list
+                .iter()
+                .copied()
+                .filter(|f| part_of(f.index()) != *with as i32)
+                .collect();
+            drop(part_of);
+            if others.is_empty() || own.is_empty() {
+                return Err(ops::OpError::Degenerate(format!(
+                    "boolean: {} has no faces (the selection holds {} faces outside the `with` part)",
+                    if others.is_empty() { "the `with` part" } else { "the selection outside the `with` part" },
+                    own.len()
+                ))
+                .into());
+            }
+            let operation = match operation {
+                BooleanOp::Difference => Operation::Difference,
+                BooleanOp::Union => Operation::Union,
+                BooleanOp::Intersection => Operation::Intersection,
+            };
+            ops::boolean::boolean(mesh, &own, &others, operation)?
+        }
         OpArgs::Spin {
             angle,
             steps,

@@ -250,6 +250,12 @@ pub enum OpArgs {
     ConvexHull {
         triangulate: bool,
     },
+    Boolean {
+        operation: BooleanOp,
+        /// The other operand: every face of this part (an index into the
+        /// program's parts).
+        with: u32,
+    },
     Spin {
         angle: Scalar,
         steps: Scalar,

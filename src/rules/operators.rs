@@ -44,6 +44,7 @@ pub enum OpId {
     Spin,
     BridgeLoops,
     ConvexHull,
+    Boolean,
     Reverse,
     RecomputeNormals,
     Delete,
@@ -113,6 +114,8 @@ pub enum ArgKind {
     Bounds,
     /// A parametric surface: the name of a `[nurbs.NAME]` table.
     Surface,
+    /// A part: the name a step's `part` (or a `[parts.NAME]` table) gives.
+    Part,
 }
 
 /// A parameter's value when the file gives none.
@@ -1034,6 +1037,30 @@ pub static OPERATORS: &[OperatorDef] = &[
         tags: true,
         example: "{}",
         summary: "convex hull of the selected vertices as a new closed shell (exact; coplanar faces merged)",
+    },
+    OperatorDef {
+        id: OpId::Boolean,
+        name: "boolean",
+        family: Family::Kernel,
+        domains: FACES,
+        params: &[
+            param(
+                "operation",
+                Choice(BooleanOp::NAMES),
+                Default::Choice(0),
+                "the selection minus, plus or intersected with the part (\"difference\")",
+            ),
+            required(
+                "with",
+                Part,
+                "the part whose faces are the other operand (a closed shell)",
+            ),
+        ],
+        exclusive: &[],
+        reads: Reads::Selection,
+        tags: false,
+        example: "{ operation = \"union\", with = \"cutter\" }",
+        summary: "exact mesh boolean of the selected faces' closed shells and a part's: the result replaces both (pieces keep their faces' parts and materials)",
     },
     OperatorDef {
         id: OpId::Assign,

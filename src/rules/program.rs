@@ -446,4 +446,6 @@ pub enum Arg {
     Bounds(Box<[Vector; 2]>),
     /// The index of a surface in [`Program::nurbs`].
     Surface(usize),
+    /// The index of a part in [`Look::parts`].
+    Part(u32),
 }

@@ -112,7 +112,7 @@ fn parameter(p: &ParamDef) -> Value {
         ArgKind::Path => json!({ "type": "string", "minLength": 1 }),
         ArgKind::NodeCondition => r("condition"),
         ArgKind::Tree => r("sdf_tree"),
-        ArgKind::Surface => json!({ "type": "string", "minLength": 1 }),
+        ArgKind::Surface | ArgKind::Part => json!({ "type": "string", "minLength": 1 }),
         ArgKind::Bounds => {
             json!({ "type": "array", "items": r("vector3"), "minItems": 2, "maxItems": 2 })
         }

@@ -33,6 +33,7 @@ use super::euler::KernelError;
 use super::ids::{EdgeId, FaceId, SlotId, VertId};
 
 pub mod bevel;
+pub mod boolean;
 pub mod bridge;
 pub mod coincide;
 pub mod create;

@@ -117,6 +117,13 @@ impl Reader {
         }
     }
 
+    fn part(&mut self, key: &str) -> u32 {
+        match self.take(key) {
+            Arg::Part(i) => i,
+            other => self.wrong(key, &other, "a required part"),
+        }
+    }
+
     fn surface(&mut self, key: &str) -> usize {
         match self.take(key) {
             Arg::Surface(i) => i,
@@ -289,6 +296,10 @@ pub(super) fn typed(def: &'static OperatorDef, args: Vec<Arg>) -> OpArgs {
         },
         OpId::ConvexHull => OpArgs::ConvexHull {
             triangulate: r.flag("triangulate"),
+        },
+        OpId::Boolean => OpArgs::Boolean {
+            operation: r.choice("operation"),
+            with: r.part("with"),
         },
         OpId::Spin => OpArgs::Spin {
             angle: r.scalar("angle"),

@@ -148,6 +148,8 @@ pub(super) fn check_value(
         (ArgKind::Tree, ArgValue::Text(_) | ArgValue::Name(_) | ArgValue::Table(_)) => {}
         (ArgKind::Surface, ArgValue::Text(_) | ArgValue::Name(_)) => {}
         (ArgKind::Surface, _) => return Err(wrong("the name of a [nurbs.NAME] surface")),
+        (ArgKind::Part, ArgValue::Text(_) | ArgValue::Name(_)) => {}
+        (ArgKind::Part, _) => return Err(wrong("the name of a part")),
         (ArgKind::Tree, _) => {
             return Err(wrong(
                 "the name of an [sdf.NAME] tree, or a tree table such as { kind = \"sphere\", radius = 1 }",
@@ -310,13 +312,14 @@ pub(super) fn compile_op(
     span: Option<Range<usize>>,
     domain: Domain,
     base_dir: &Path,
+    parts: &mut dyn FnMut(&str) -> u32,
 ) -> Result<Op, RuleError> {
     let checked = check_args(c, def, args, span.clone())?;
     if def.family == Family::Command {
         return Ok(Op::Command(Box::new(compile_command(c, &checked, domain)?)));
     }
     check_method_params(c, &checked)?;
-    let args = compile_params(c, def.name, def.params, &checked.values, base_dir)?;
+    let args = compile_params(c, def.name, def.params, &checked.values, base_dir, parts)?;
     Ok(Op::Call(Box::new(Call {
         def,
         args: args::typed(def, args),
@@ -361,6 +364,7 @@ pub(super) fn compile_params(
     params: &[ParamDef],
     values: &[Option<&Spanned<ArgValue>>],
     base_dir: &Path,
+    parts: &mut dyn FnMut(&str) -> u32,
 ) -> Result<Vec<Arg>, RuleError> {
     let checked = CheckedValues { params, values };
     let mut compiled: Vec<Arg> = Vec::with_capacity(params.len());
@@ -410,6 +414,11 @@ pub(super) fn compile_params(
             }
             (ArgKind::Tree, Some(v)) => Arg::Tree(c.tree_reference(v, owner)?),
             (ArgKind::Surface, Some(v)) => Arg::Surface(c.surface_reference(v)?),
+            (ArgKind::Part, Some(_)) => {
+                let name = checked.text(p.key).expect("present");
+                c.check_name(&name, "part")?;
+                Arg::Part(parts(&name.value))
+            }
             (ArgKind::Bounds, Some(v)) => match &v.value {
                 ArgValue::List(corners) => {
                     let corner = |k: usize| -> Result<Vector, RuleError> {

@@ -291,7 +291,17 @@ impl Compiler<'_> {
                 ))
             }
         };
-        let args = compile_params(self, kind.name, kind.params, &values, self.base_dir)?;
+        // No tree parameter names a part.
+        let no_parts =
+            &mut |name: &str| -> u32 { unreachable!("sdf parameter naming part {name}") };
+        let args = compile_params(
+            self,
+            kind.name,
+            kind.params,
+            &values,
+            self.base_dir,
+            no_parts,
+        )?;
         let placement = PLACEMENT
             .iter()
             .zip(&placed)
@@ -302,6 +312,7 @@ impl Compiler<'_> {
                     std::slice::from_ref(p),
                     &[*v],
                     self.base_dir,
+                    &mut |name: &str| -> u32 { unreachable!("placement naming part {name}") },
                 )
                 .map(|mut a| a.remove(0)),
                 None => Ok(Arg::Absent),

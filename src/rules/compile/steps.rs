@@ -619,7 +619,16 @@ impl Expander<'_, '_> {
         let op = match (op, compound_index) {
             (Some(args), _) => {
                 let def = def.expect("an operator step has a definition");
-                let compiled = compile_op(c, def, args, op_span.clone(), domain, self.base_dir)?;
+                let look = &mut self.look;
+                let compiled = compile_op(
+                    c,
+                    def,
+                    args,
+                    op_span.clone(),
+                    domain,
+                    self.base_dir,
+                    &mut |name| look.part_index(name),
+                )?;
                 if matches!(compiled, Op::Command(_)) {
                     self.uses_graph = true;
                 }

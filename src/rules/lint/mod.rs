@@ -478,7 +478,11 @@ impl<'a> Linter<'a> {
                     self.tree(value, out);
                     continue;
                 }
-                ArgKind::Bool | ArgKind::Choice(_) | ArgKind::Path | ArgKind::Surface => continue,
+                ArgKind::Bool
+                | ArgKind::Choice(_)
+                | ArgKind::Path
+                | ArgKind::Surface
+                | ArgKind::Part => continue,
             };
             let items: Vec<&'a Spanned<ArgValue>> = match &value.value {
                 ArgValue::List(items) => items
