@@ -27,7 +27,6 @@ const OPEN_EXAMPLES: &[&str] = &[
     "nurbs-surface",
     "bezier-patch",
     "vase",
-    "cup",
 ];
 
 #[test]

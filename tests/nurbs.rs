@@ -447,14 +447,16 @@ fn a_lathe_of_a_named_curve_equals_the_lathe_of_its_list() {
 }
 
 #[test]
-fn the_cup_example_is_two_clean_parts() {
+fn the_cup_example_is_one_closed_solid_of_two_parts() {
     let s = run_stats(&["rules/cup.toml"]);
-    assert_eq!(s["mesh"]["components"], 2);
+    // The handle, capped, fused into the body by an exact boolean union:
+    // one closed solid with one hole through it.
+    assert_eq!(s["mesh"]["components"], 1);
     assert_eq!(s["mesh"]["manifold"], true);
+    assert_eq!(s["mesh"]["watertight"], true);
     assert_eq!(s["mesh"]["non_manifold_edges"], 0);
-    // The body is closed; only the handle's two ends are open.
-    let open = s["mesh"]["boundary_edges"].as_u64().unwrap();
-    assert!(open > 0 && open <= 64, "{open} boundary edges");
+    assert_eq!(s["mesh"]["boundary_edges"], 0);
+    assert_eq!(s["mesh"]["euler_characteristic"], 0);
     let parts: Vec<&str> = s["parts"]
         .as_array()
         .unwrap()
@@ -462,7 +464,7 @@ fn the_cup_example_is_two_clean_parts() {
         .map(|p| p["name"].as_str().unwrap())
         .collect();
     assert_eq!(parts, ["body", "handle"]);
-    assert!(surface_of(&s, "step1")["max_deviation"].as_f64().unwrap() <= 0.002);
+    assert!(surface_of(&s, "handle")["max_deviation"].as_f64().unwrap() <= 0.002);
 }
 
 #[test]

@@ -158,8 +158,9 @@ struct Event {
 
 /// Computes `operation` of the two operands.
 pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanError> {
-    check_closed(input)?;
     let tris = triangulate(input)?;
+    let adjacency = Adjacency::new(input.points.len(), &tris);
+    adjacency.check_closed(&tris)?;
     let points = &input.points;
     let (a_tris, b_tris): (Vec<u32>, Vec<u32>) = {
         let mut a = Vec::new();
@@ -180,39 +181,36 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
     // Per triangle: its segments (event pairs) and, per segment, the
     // triangle of the other operand it lies on.
     let mut segments: FxHashMap<u32, Vec<(u32, u32, u32)>> = FxHashMap::default();
-    let bvh = Bvh::new(&b_tris, |t| bounds(&corners(t)));
-    let mut found = Vec::new();
-    for &ta in &a_tris {
-        found.clear();
-        bvh.query(&bounds(&corners(ta)), &mut found);
-        for &tb in &found {
-            let Some(pair) = crossing(&tris, points, ta, tb)? else {
-                continue;
-            };
-            let mut ids = [0u32; 2];
-            for (k, (edge, tri)) in pair.into_iter().enumerate() {
-                let key = (edge.0, edge.1, tri);
-                ids[k] = *event_of.entry(key).or_insert_with(|| {
-                    let t = tri_corners(&tris, points, tri);
-                    events.push(Event {
-                        edge,
-                        position: edge_plane_point(
-                            points[edge.0 as usize],
-                            points[edge.1 as usize],
-                            t,
-                        ),
-                    });
-                    (events.len() - 1) as u32
+    // Candidate pairs from both hierarchies at once: subtrees of A far
+    // from B's surface are dropped whole. Sorted, so events are numbered
+    // in one order whatever the trees look like.
+    let tree_a = Bvh::new(&a_tris, |t| bounds(&corners(t)));
+    let tree_b = Bvh::new(&b_tris, |t| bounds(&corners(t)));
+    let mut candidates = tree_a.overlapping_pairs(&tree_b);
+    candidates.sort_unstable();
+    for (ta, tb) in candidates {
+        let Some(pair) = crossing(&tris, points, ta, tb)? else {
+            continue;
+        };
+        let mut ids = [0u32; 2];
+        for (k, (edge, tri)) in pair.into_iter().enumerate() {
+            let key = (edge.0, edge.1, tri);
+            ids[k] = *event_of.entry(key).or_insert_with(|| {
+                let t = tri_corners(&tris, points, tri);
+                events.push(Event {
+                    edge,
+                    position: edge_plane_point(points[edge.0 as usize], points[edge.1 as usize], t),
                 });
-            }
-            if ids[0] == ids[1] {
-                return Err(BooleanError::DegenerateContact {
-                    at: events[ids[0] as usize].position,
-                });
-            }
-            segments.entry(ta).or_default().push((ids[0], ids[1], tb));
-            segments.entry(tb).or_default().push((ids[0], ids[1], ta));
+                (events.len() - 1) as u32
+            });
         }
+        if ids[0] == ids[1] {
+            return Err(BooleanError::DegenerateContact {
+                at: events[ids[0] as usize].position,
+            });
+        }
+        segments.entry(ta).or_default().push((ids[0], ids[1], tb));
+        segments.entry(tb).or_default().push((ids[0], ids[1], ta));
     }
     let n_points = points.len() as u32;
     let event_vertex = |e: u32| n_points + e;
@@ -228,6 +226,8 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
     all_points.extend(events.iter().map(|e| e.position));
     let mut pieces: Vec<Piece> = Vec::with_capacity(tris.len());
     let mut cut_polygon = vec![false; input.polygons.len()];
+    // The piece an uncut triangle is (NONE for cut ones).
+    let mut piece_of_tri = vec![NONE; tris.len()];
     for (t, tri) in tris.iter().enumerate() {
         let t = t as u32;
         let segs = segments.get(&t);
@@ -236,6 +236,7 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
             on_edge.contains_key(&(u, v))
         });
         if segs.is_none() && !has_edge_events {
+            piece_of_tri[t as usize] = pieces.len() as u32;
             pieces.push(Piece {
                 v: tri.v,
                 tri: t,
@@ -265,21 +266,40 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
     }
     let mut patches = super::union_find::UnionFind::new(pieces.len());
     {
-        let mut by_edge: FxHashMap<(u32, u32, bool), u32> = FxHashMap::default();
-        for (i, p) in pieces.iter().enumerate() {
-            let is_a = tris[p.tri as usize].operand == Operand::A;
+        // Cut pieces by their directed edges (uncut triangles find their
+        // neighbours through the vertex adjacency instead: no hashing for
+        // the bulk of the mesh).
+        let key = |a: u32, b: u32| u64::from(a) << 32 | u64::from(b);
+        let mut cut_edges: FxHashMap<u64, u32> = FxHashMap::default();
+        for (i, p) in pieces.iter().enumerate().filter(|(_, p)| p.cut) {
             for k in 0..3 {
-                let key = ordered(p.v[k], p.v[(k + 1) % 3]);
-                if curve.contains(&key) {
-                    continue;
-                }
-                match by_edge.entry((key.0, key.1, is_a)) {
-                    std::collections::hash_map::Entry::Occupied(o) => {
-                        patches.union(*o.get(), i as u32);
+                cut_edges.insert(key(p.v[k], p.v[(k + 1) % 3]), i as u32);
+            }
+        }
+        let operand = |i: u32| tris[pieces[i as usize].tri as usize].operand;
+        for (i, p) in pieces.iter().enumerate() {
+            let i = i as u32;
+            for k in 0..3 {
+                let (a, b) = (p.v[k], p.v[(k + 1) % 3]);
+                let other = if p.cut {
+                    if curve.contains(&ordered(a, b)) {
+                        continue;
                     }
-                    std::collections::hash_map::Entry::Vacant(v) => {
-                        v.insert(i as u32);
+                    // Its twin is a cut piece's, or an uncut triangle's
+                    // (joined from that side).
+                    match cut_edges.get(&key(b, a)) {
+                        Some(&q) => q,
+                        None => continue,
                     }
+                } else {
+                    let twin = adjacency.twin_triangle(a, b);
+                    match piece_of_tri[twin as usize] {
+                        NONE => *cut_edges.get(&key(b, a)).expect("a cut piece on the edge"),
+                        q => q,
+                    }
+                };
+                if other > i && operand(other) == operand(i) {
+                    patches.union(i, other);
                 }
             }
         }
@@ -428,39 +448,103 @@ fn bounds(c: &[DVec3; 3]) -> (DVec3, DVec3) {
     (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]))
 }
 
-/// Every undirected edge of each operand used exactly twice, once each
-/// way.
-fn check_closed(input: &Input) -> Result<(), BooleanError> {
-    for operand in [Operand::A, Operand::B] {
-        let mut uses: FxHashMap<(u32, u32), (u32, u32)> = FxHashMap::default();
-        for (ring, o) in &input.polygons {
-            if *o != operand {
-                continue;
+const NONE: u32 = u32::MAX;
+
+/// The triangles' directed edges by first vertex (compressed rows): each
+/// edge's twin is found among its second vertex's few edges, in linear
+/// time and without hashing.
+struct Adjacency {
+    /// Per point: where its edges start in `to` and `tri`.
+    start: Vec<u32>,
+    /// Each directed edge's second vertex and triangle.
+    to: Vec<u32>,
+    tri: Vec<u32>,
+}
+
+impl Adjacency {
+    fn new(points: usize, tris: &[Tri]) -> Adjacency {
+        let mut start = vec![0u32; points + 1];
+        for t in tris {
+            for &v in &t.v {
+                start[v as usize + 1] += 1;
             }
-            for k in 0..ring.len() {
-                let (a, b) = (ring[k], ring[(k + 1) % ring.len()]);
-                let e = uses.entry(ordered(a, b)).or_insert((0, 0));
-                if a < b {
-                    e.0 += 1;
-                } else {
-                    e.1 += 1;
+        }
+        for i in 0..points {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut to = vec![0u32; 3 * tris.len()];
+        let mut tri = vec![0u32; 3 * tris.len()];
+        for (t, x) in tris.iter().enumerate() {
+            for k in 0..3 {
+                let a = x.v[k] as usize;
+                let slot = fill[a] as usize;
+                to[slot] = x.v[(k + 1) % 3];
+                tri[slot] = t as u32;
+                fill[a] += 1;
+            }
+        }
+        Adjacency { start, to, tri }
+    }
+
+    fn edges(&self, a: u32) -> std::ops::Range<usize> {
+        self.start[a as usize] as usize..self.start[a as usize + 1] as usize
+    }
+
+    /// The triangle on the other side of directed edge `a → b` (the
+    /// shells are closed: checked first).
+    fn twin_triangle(&self, a: u32, b: u32) -> u32 {
+        let r = self.edges(b);
+        let k = self.to[r].iter().position(|&w| w == a).expect("closed");
+        self.tri[self.start[b as usize] as usize + k]
+    }
+
+    /// Every undirected edge of each operand used exactly twice, once each
+    /// way.
+    fn check_closed(&self, tris: &[Tri]) -> Result<(), BooleanError> {
+        for operand in [Operand::A, Operand::B] {
+            let (mut boundary, mut bad, mut any) = (0, 0, false);
+            let count = |from: u32, to: u32| {
+                self.edges(from)
+                    .filter(|&i| self.to[i] == to && tris[self.tri[i] as usize].operand == operand)
+                    .count()
+            };
+            for a in 0..self.start.len() as u32 - 1 {
+                for i in self.edges(a) {
+                    let b = self.to[i];
+                    if tris[self.tri[i] as usize].operand != operand {
+                        continue;
+                    }
+                    any = true;
+                    // Counted once per undirected edge: at its first
+                    // entry from the lower vertex, or from the only side.
+                    let first = self.edges(a).find(|&j| {
+                        self.to[j] == b && tris[self.tri[j] as usize].operand == operand
+                    });
+                    if first != Some(i) {
+                        continue;
+                    }
+                    let (fwd, bwd) = (count(a, b), count(b, a));
+                    if bwd > 0 && a > b {
+                        continue;
+                    }
+                    if fwd + bwd == 1 {
+                        boundary += 1;
+                    } else if (fwd, bwd) != (1, 1) {
+                        bad += 1;
+                    }
                 }
             }
+            if boundary > 0 || bad > 0 || !any {
+                return Err(BooleanError::Open {
+                    operand,
+                    boundary_edges: boundary,
+                    non_manifold_edges: bad,
+                });
+            }
         }
-        let boundary = uses.values().filter(|u| u.0 + u.1 == 1).count();
-        let bad = uses
-            .values()
-            .filter(|u| u.0 + u.1 > 1 && (u.0, u.1) != (1, 1))
-            .count();
-        if boundary > 0 || bad > 0 || uses.is_empty() {
-            return Err(BooleanError::Open {
-                operand,
-                boundary_edges: boundary,
-                non_manifold_edges: bad,
-            });
-        }
+        Ok(())
     }
-    Ok(())
 }
 
 fn triangulate(input: &Input) -> Result<Vec<Tri>, BooleanError> {
@@ -478,11 +562,21 @@ fn triangulate(input: &Input) -> Result<Vec<Tri>, BooleanError> {
             return Err(degenerate);
         }
         local.clear();
-        super::polygon::triangulate(&ring_points, &mut local);
+        if ring.len() == 3 {
+            local.push([0, 1, 2]);
+        } else {
+            super::polygon::triangulate(&ring_points, &mut local);
+        }
         for t in &local {
             let v = t.map(|i| ring[i as usize]);
             let c = v.map(|i| input.points[i as usize]);
-            if (c[1] - c[0]).cross(c[2] - c[0]) == DVec3::ZERO || !collinear_free(c) {
+            // The exact test only where rounding could hide a line.
+            let n = (c[1] - c[0]).cross(c[2] - c[0]);
+            let scale = (c[1] - c[0])
+                .length_squared()
+                .max((c[2] - c[0]).length_squared());
+            let clearly_spanning = n.length_squared() > 1e-24 * scale * scale;
+            if !clearly_spanning && !collinear_free(c) {
                 return Err(degenerate);
             }
             tris.push(Tri {
@@ -849,27 +943,49 @@ impl Bvh {
         self.build(first + 1, right);
     }
 
-    /// Appends every item whose box overlaps `(lo, hi)`, in id order.
-    fn query(&self, (lo, hi): &(DVec3, DVec3), out: &mut Vec<u32>) {
-        if self.nodes.is_empty() {
-            return;
+    /// Every pair of items, one of each tree, whose boxes overlap.
+    fn overlapping_pairs(&self, other: &Bvh) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        if self.nodes.is_empty() || other.nodes.is_empty() {
+            return out;
         }
-        let start = out.len();
-        let mut stack = vec![0usize];
-        while let Some(n) = stack.pop() {
-            let node = &self.nodes[n];
-            if node.lo.cmpgt(*hi).any() || node.hi.cmplt(*lo).any() {
+        let overlap =
+            |x: &BvhNode, y: &BvhNode| !(x.lo.cmpgt(y.hi).any() || x.hi.cmplt(y.lo).any());
+        let mut stack = vec![(0usize, 0usize)];
+        while let Some((i, j)) = stack.pop() {
+            let (x, y) = (&self.nodes[i], &other.nodes[j]);
+            if !overlap(x, y) {
                 continue;
             }
-            if node.count > 0 {
-                let s = node.start as usize;
-                out.extend(&self.items[s..s + node.count as usize]);
-            } else {
-                stack.push(node.start as usize);
-                stack.push(node.start as usize + 1);
+            match (x.count > 0, y.count > 0) {
+                (true, true) => {
+                    for &a in &self.items[x.start as usize..(x.start + x.count) as usize] {
+                        for &b in &other.items[y.start as usize..(y.start + y.count) as usize] {
+                            out.push((a, b));
+                        }
+                    }
+                }
+                // Descend the larger box (or the inner node).
+                (false, true) => {
+                    stack.push((x.start as usize, j));
+                    stack.push((x.start as usize + 1, j));
+                }
+                (true, false) => {
+                    stack.push((i, y.start as usize));
+                    stack.push((i, y.start as usize + 1));
+                }
+                (false, false) => {
+                    if (x.hi - x.lo).length_squared() >= (y.hi - y.lo).length_squared() {
+                        stack.push((x.start as usize, j));
+                        stack.push((x.start as usize + 1, j));
+                    } else {
+                        stack.push((i, y.start as usize));
+                        stack.push((i, y.start as usize + 1));
+                    }
+                }
             }
         }
-        out[start..].sort_unstable();
+        out
     }
 }
 

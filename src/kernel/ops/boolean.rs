@@ -8,8 +8,6 @@
 //! attributes of its edge's first vertex. Faces, edges and vertices left
 //! with nothing are removed.
 
-use rustc_hash::FxHashMap;
-
 use super::{canonical, OpError, Selection};
 use crate::geom::boolean::{self as arrangement, Input, Operand, Operation, PointSource};
 use crate::kernel::{FaceId, Mesh, VertId};
@@ -30,8 +28,9 @@ pub fn boolean(
     for &f in a.iter().chain(&b) {
         mesh.check_face(f)?;
     }
-    // Local point indices, in first-use order over the faces in id order.
-    let mut index: FxHashMap<VertId, u32> = FxHashMap::default();
+    // Local point indices, in first-use order over the faces in id order
+    // (by vertex slot: no hashing).
+    let mut index: Vec<u32> = vec![u32::MAX; mesh.vert_capacity()];
     let mut verts: Vec<VertId> = Vec::new();
     let mut input = Input::default();
     let mut faces: Vec<FaceId> = Vec::with_capacity(a.len() + b.len());
@@ -40,11 +39,13 @@ pub fn boolean(
             let ring: Vec<u32> = mesh
                 .face_verts(f)
                 .map(|v| {
-                    *index.entry(v).or_insert_with(|| {
+                    let slot = &mut index[v.index()];
+                    if *slot == u32::MAX {
+                        *slot = verts.len() as u32;
                         verts.push(v);
                         input.points.push(mesh.position(v));
-                        (verts.len() - 1) as u32
-                    })
+                    }
+                    *slot
                 })
                 .collect();
             input.polygons.push((ring, operand));
