@@ -28,6 +28,7 @@ pub fn boolean(
     for &f in a.iter().chain(&b) {
         mesh.check_face(f)?;
     }
+    check_not_self_crossing(mesh, &a, &b)?;
     // Local point indices, in first-use order over the faces in id order
     // (by vertex slot: no hashing).
     let mut index: Vec<u32> = vec![u32::MAX; mesh.vert_capacity()];
@@ -125,6 +126,34 @@ pub fn boolean(
     Ok(made)
 }
 
+/// An operand that crosses itself has no inside to speak of: refused,
+/// naming the first pair of faces (the mesh's self-intersection search,
+/// exact; pairs of one face from each operand are the boolean's work).
+fn check_not_self_crossing(mesh: &Mesh, a: &[FaceId], b: &[FaceId]) -> Result<(), OpError> {
+    let mut operand = vec![0u8; mesh.face_capacity()];
+    for &f in a {
+        operand[f.index()] = 1;
+    }
+    for &f in b {
+        operand[f.index()] = 2;
+    }
+    let crossing: Vec<(FaceId, FaceId)> = crate::kernel::intersect::self_intersections(mesh)
+        .into_iter()
+        .filter(|(f, g)| operand[f.index()] != 0 && operand[f.index()] == operand[g.index()])
+        .collect();
+    match crossing.first() {
+        None => Ok(()),
+        Some(&(f, g)) => Err(OpError::Degenerate(format!(
+            "boolean: {} crosses itself: {} pairs of its faces intersect (the first: faces {} and {}); \
+             fuse it first (`sdf_boolean`, or `merge` where the crossing is coincident copies)",
+            if operand[f.index()] == 1 { "the selection" } else { "the `with` part" },
+            crossing.len(),
+            f.index(),
+            g.index()
+        ))),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use glam::DVec3;
@@ -172,6 +201,19 @@ mod tests {
         assert!(report.watertight && report.manifold && report.consistently_oriented);
         let volume = report.volume.unwrap();
         assert!(volume > 0.3 && volume < 1.0, "{volume}");
+    }
+
+    #[test]
+    fn an_operand_crossing_itself_is_refused() {
+        let mut mesh = Mesh::new();
+        let mut a = cube(&mut mesh, DVec3::ZERO, 1.0, 0.0);
+        a.extend(cube(&mut mesh, DVec3::splat(0.5), 1.0, 0.3));
+        let b = cube(&mut mesh, DVec3::splat(3.0), 1.0, 0.2);
+        let err = boolean(&mut mesh, &a, &b, Operation::Union).unwrap_err();
+        assert!(
+            err.to_string().contains("the selection crosses itself"),
+            "{err}"
+        );
     }
 
     #[test]
