@@ -294,7 +294,17 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
                 } else {
                     let twin = adjacency.twin_triangle(a, b);
                     match piece_of_tri[twin as usize] {
-                        NONE => *cut_edges.get(&key(b, a)).expect("a cut piece on the edge"),
+                        // A cut neighbour keeps this edge whole, unless
+                        // its triangulation put a point on it (a contact
+                        // within rounding of the edge): refused.
+                        NONE => match cut_edges.get(&key(b, a)) {
+                            Some(&q) => q,
+                            None => {
+                                return Err(BooleanError::DegenerateContact {
+                                    at: all_points[a as usize],
+                                })
+                            }
+                        },
                         q => q,
                     }
                 };
