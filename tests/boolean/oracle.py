@@ -25,7 +25,8 @@ case the oracle checks itself: each operand closed, genus 0, its volume
 equal to manifold's and, for boxes, to the exact one; manifold's three
 volumes adding up (V(A u B) + V(A n B) = V(A) + V(B) to ~1e-15); and
 graftal reading back the PLY the oracle writes. FILTER runs only the cases
-whose name contains it. Exits 1 when a general-position case fails or a
+whose name contains it; BOOLEAN_PAIRS (default 100) and BOOLEAN_SEED
+(2024) make longer or other random runs. Exits 1 when a general-position case fails or a
 degenerate one gives a wrong result.
 """
 
@@ -38,8 +39,8 @@ import time
 import numpy as np
 import manifold3d
 
-SEED = 2024
-PAIRS = 100
+SEED = int(os.environ.get("BOOLEAN_SEED", "2024"))
+PAIRS = int(os.environ.get("BOOLEAN_PAIRS", "100"))  # BOOLEAN_PAIRS=2000 for a longer local run
 OPERATIONS = ("union", "difference", "intersection")
 TIMEOUT = 60  # seconds a graftal run may take
 
