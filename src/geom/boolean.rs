@@ -2,9 +2,11 @@
 //! (issue 36): union, difference and intersection, the topology decided by
 //! exact predicates.
 //!
-//! 1. Both operands are triangulated; every pair of triangles whose boxes
-//!    overlap (a bounding-volume hierarchy over B's triangles) is tested
-//!    with exact `orient3d`: each edge of one that pierces the other
+//! 1. Both operands are triangulated and checked closed (a vertex-indexed
+//!    table of directed edges, which also finds each edge's twin later);
+//!    every pair of triangles whose boxes overlap (one bounding-volume
+//!    hierarchy per operand, walked together) is tested with exact
+//!    `orient3d`: each edge of one that pierces the other
 //!    triangle is an *event* (one point per edge and triangle, shared by
 //!    every triangle that meets it), and the two events of a crossing pair
 //!    bound the segment of the intersection curve inside both triangles.
