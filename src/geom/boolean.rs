@@ -260,10 +260,13 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
     }
 
     // 3. Patches: pieces of one operand joined across edges off the curve.
-    let mut curve: rustc_hash::FxHashSet<(u32, u32)> = rustc_hash::FxHashSet::default();
+    let mut curve: rustc_hash::FxHashSet<u64> = rustc_hash::FxHashSet::default();
     for segs in segments.values() {
         for &(e0, e1, _) in segs {
-            curve.insert(ordered(event_vertex(e0), event_vertex(e1)));
+            curve.insert(super::edge_key::undirected(
+                event_vertex(e0),
+                event_vertex(e1),
+            ));
         }
     }
     let mut patches = super::union_find::UnionFind::new(pieces.len());
@@ -271,7 +274,7 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
         // Cut pieces by their directed edges (uncut triangles find their
         // neighbours through the vertex adjacency instead: no hashing for
         // the bulk of the mesh).
-        let key = |a: u32, b: u32| u64::from(a) << 32 | u64::from(b);
+        let key = super::edge_key::directed;
         let mut cut_edges: FxHashMap<u64, u32> = FxHashMap::default();
         for (i, p) in pieces.iter().enumerate().filter(|(_, p)| p.cut) {
             for k in 0..3 {
@@ -284,7 +287,7 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
             for k in 0..3 {
                 let (a, b) = (p.v[k], p.v[(k + 1) % 3]);
                 let other = if p.cut {
-                    if curve.contains(&ordered(a, b)) {
+                    if curve.contains(&super::edge_key::undirected(a, b)) {
                         continue;
                     }
                     // Its twin is a cut piece's, or an uncut triangle's
@@ -607,17 +610,19 @@ fn collinear_free(c: [DVec3; 3]) -> bool {
     (0..3).any(|axis| super::predicates::orient2d_dropping(c[0], c[1], c[2], axis) != 0.0)
 }
 
+/// An edge (its ends, lower first) piercing a triangle.
+type Pierce = ((u32, u32), u32);
+
 /// The two events bounding the intersection of triangles `ta` (of A) and
 /// `tb` (of B), as (edge, triangle it pierces); `None` when they do not
 /// meet. Every sign is exact; a contact that is not a clean crossing is an
 /// error.
-#[allow(clippy::type_complexity)]
 fn crossing(
     tris: &[Tri],
     points: &[DVec3],
     ta: u32,
     tb: u32,
-) -> Result<Option<[((u32, u32), u32); 2]>, BooleanError> {
+) -> Result<Option<[Pierce; 2]>, BooleanError> {
     let a = tris[ta as usize].v;
     let b = tris[tb as usize].v;
     let pa = a.map(|i| points[i as usize]);
@@ -642,7 +647,7 @@ fn crossing(
             Ok(None)
         };
     }
-    let mut found: Vec<((u32, u32), u32)> = Vec::with_capacity(2);
+    let mut found: Vec<Pierce> = Vec::with_capacity(2);
     for (verts, signs, other, other_id) in [(a, sa, pb, tb), (b, sb, pa, ta)] {
         for k in 0..3 {
             let (i, j) = (k, (k + 1) % 3);
@@ -866,14 +871,9 @@ fn retriangulate(
 /// Strackee's solid angle): about 1 inside a closed outward shell, 0
 /// outside.
 fn winding_number(p: DVec3, tris: impl Iterator<Item = [DVec3; 3]>) -> f64 {
-    let mut total = 0.0;
-    for [a, b, c] in tris {
-        let (a, b, c) = (a - p, b - p, c - p);
-        let (la, lb, lc) = (a.length(), b.length(), c.length());
-        let det = a.dot(b.cross(c));
-        let div = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
-        total += 2.0 * libm::atan2(det, div);
-    }
+    let total: f64 = tris
+        .map(|[a, b, c]| super::polygon::solid_angle(a - p, b - p, c - p))
+        .sum();
     total / (4.0 * std::f64::consts::PI)
 }
 

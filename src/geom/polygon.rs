@@ -128,6 +128,18 @@ pub fn plane_basis(normal: DVec3) -> (DVec3, DVec3) {
     (u, v)
 }
 
+/// Signed solid angle of triangle (a, b, c) seen from the origin
+/// (Van Oosterom & Strackee 1983); positive for an outward triangle of a
+/// closed mesh seen from inside it. Summed over a closed mesh and divided
+/// by 4π: the winding number at the origin.
+#[inline]
+pub fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    let det = a.dot(b.cross(c));
+    let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    2.0 * libm::atan2(det, den)
+}
+
 /// Triangulates a ring, appending `n - 2` triangles of local indices into `points` to `out`
 /// (existing contents of `out` are kept). Rings with fewer than 3 points append nothing.
 ///

@@ -58,6 +58,7 @@
 //! The choice and its reason are in [`MeshFieldReport`].
 
 use crate::geom::edge_key::undirected as ukey;
+use crate::geom::polygon::solid_angle;
 use glam::DVec3;
 
 use crate::sdf::aabb::Aabb;
@@ -736,18 +737,6 @@ impl MeshField {
         }
         (best.0.sqrt(), best.1)
     }
-}
-
-/// Signed solid angle of triangle (a, b, c) seen from the origin
-/// (Van Oosterom & Strackee 1983); positive when abc is counter-clockwise
-/// seen from the origin's outside… i.e. for an outward triangle seen from
-/// inside a closed mesh.
-#[inline]
-fn solid_angle(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let (la, lb, lc) = (a.length(), b.length(), c.length());
-    let det = a.dot(b.cross(c));
-    let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
-    2.0 * libm::atan2(det, den)
 }
 
 /// Binned-SAH BVH (thesis §2.3.2's cost and bucket method, applied to
