@@ -297,22 +297,21 @@ fn a_wall_cut_by_windows_and_a_drill_has_the_volume_and_genus_it_should() {
     assert!(o.status.success(), "{}", stderr(&o));
     let obj = std::fs::read_to_string(d.path().join("u.obj")).unwrap();
     assert!(obj.contains("usemtl brass"), "{obj}");
-    // Touching boxes: a located refusal naming the contact, nothing written.
-    std::fs::write(
-        d.path().join("t.toml"),
+    // Boxes touching on part of a face: computed exactly, fused into one
+    // closed solid (the exact path; the general-position one refuses).
+    let s = stats(
+        d.path(),
         "[start]\ncube = {}\n[[step]]\nname = \"b\"\ncube = {}\npart = \"b\"\n\
-         [[step]]\nfrom = \"b\"\non = \"vertices\"\ntranslate = { offset = [1, 0.5, 0.5] }\n\
+         [[step]]\nfrom = \"b\"\non = \"vertices\"\ntranslate = { offset = [2, 1, 1] }\n\
          [[step]]\nboolean = { operation = \"union\", with = \"b\" }\n",
-    )
-    .unwrap();
-    let o = graftal_in(d.path(), &["run", "t.toml", "-o", "t.obj"]);
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("t.toml:12:1") && stderr(&o).contains("touch without crossing"),
-        "{}",
-        stderr(&o)
     );
-    assert!(!d.path().join("t.obj").exists());
+    let m = &s["mesh"];
+    assert_eq!(m["watertight"], true, "{m}");
+    assert_eq!(m["manifold"], true, "{m}");
+    assert_eq!(m["components"], 1, "{m}");
+    assert_eq!(m["euler_characteristic"], 2, "{m}");
+    // Two cubes of side 2 meeting on a 1 x 1 square of the face x = 1.
+    assert!((m["volume"].as_f64().unwrap() - 16.0).abs() < 1e-12, "{m}");
     // An open operand: how many boundary edges.
     std::fs::write(
         d.path().join("o.toml"),

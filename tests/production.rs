@@ -298,7 +298,7 @@ fn a_shared_folder_loses_no_variant_to_writers_in_other_pid_namespaces() {
             "run",
             &cup,
             "--seeds",
-            "0..200",
+            "0..100",
             "-o",
             "out/cup-{seed}.glb",
             "-j1",
@@ -353,7 +353,7 @@ fn a_shared_folder_loses_no_variant_to_writers_in_other_pid_namespaces() {
     let summary = json(&main);
     assert_eq!(
         (summary["ok"].as_u64(), summary["failed"].as_u64()),
-        (Some(200), Some(0))
+        (Some(100), Some(0))
     );
     let o = graftal_in(dir.path(), &["manifest", "check", "out/manifest.json"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));

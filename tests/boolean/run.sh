@@ -3,7 +3,8 @@
 # PyPI), the reference (`make test-boolean`). Makes a Python virtual
 # environment with numpy and manifold3d under the target folder the first
 # time (~20 s), then runs oracle.py with the graftal binary given in
-# $GRAFTAL: 100 random pairs of closed meshes and hand-made coplanar ones,
+# $GRAFTAL: 100 random pairs of closed meshes, 100 random pairs of boxes on a
+# lattice (touching, coplanar) and hand-made touching contacts,
 # union, difference and intersection. Work files go to a temporary folder,
 # removed afterwards unless KEEP_STATE=1. Arguments go to oracle.py (a
 # FILTER: only the cases whose name contains it). Exits 1 on a mismatch.

@@ -69,7 +69,8 @@ pub fn boolean(
         }
     }
     for (i, source) in out.sources.iter().enumerate() {
-        if let (PointSource::Crossing(from, _), true) = (source, used[i]) {
+        if let (PointSource::Crossing(from, _) | PointSource::Copy(from), true) = (source, used[i])
+        {
             let v = mesh.make_vert(out.points[i]);
             mesh.copy_vert_attrs(verts[*from as usize], v);
             vert_of[i] = Some(v);

@@ -25,18 +25,20 @@
 //!
 //! What is exact: whether and where (which edges, which triangles) the
 //! surfaces cross, so the result's topology is closed and manifold
-//! whenever the inputs are and no contact is degenerate. Event positions
-//! are rounded to f64 (one rounding of the edge-plane intersection).
-//! Degenerate contacts — a vertex on the other surface, an edge through
-//! another edge, coplanar overlapping faces — are refused with the point
-//! where they happen: perturb an operand (a rotation by 1e-6 rad) or
-//! union through the signed distance pillar.
+//! whenever the inputs are. Event positions are rounded to f64 (one
+//! rounding of the edge-plane intersection). This path needs general
+//! position; where any contact is degenerate — a vertex on the other
+//! surface, an edge through another edge, coplanar overlapping faces —
+//! it stops, and [`exact`] computes the whole boolean in rational
+//! arithmetic instead (slower, and as exact).
 
 use glam::{DVec2, DVec3};
 use rustc_hash::FxHashMap;
 use spade::{ConstrainedDelaunayTriangulation, HasPosition, Point2, Triangulation};
 
 use super::predicates::{orient3d, triangle_triangle_exact};
+
+mod exact;
 
 /// Which of the two operands a polygon belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -66,8 +68,12 @@ pub struct Input {
 pub enum PointSource {
     /// An input point.
     Input(u32),
-    /// Where the edge between two input points crosses the other operand.
+    /// Where the edge between two input points crosses the other operand
+    /// (or a point made inside the triangle whose first edge this is).
     Crossing(u32, u32),
+    /// A second vertex at the place of input point `i`: the result's
+    /// solids touch there, and each side has its own vertex.
+    Copy(u32),
 }
 
 /// One result polygon.
@@ -104,8 +110,12 @@ pub enum BooleanError {
     },
     /// A polygon of an operand has no area (or a non-finite point).
     DegenerateFace { operand: Operand, polygon: u32 },
-    /// The surfaces touch without crossing cleanly there.
+    /// The surfaces touch without crossing cleanly there (the
+    /// general-position path's refusal, which hands over to the exact one).
     DegenerateContact { at: DVec3 },
+    /// The result's solids would meet along an edge (or the exact cut of a
+    /// triangle failed there).
+    NonManifoldResult { at: DVec3 },
 }
 
 impl std::fmt::Display for BooleanError {
@@ -133,7 +143,14 @@ impl std::fmt::Display for BooleanError {
                 f,
                 "the operands touch without crossing cleanly near ({:.6}, {:.6}, {:.6}) \
                  (a vertex on the other surface, an edge through an edge, or coplanar \
-                 faces): exact booleans of such contacts are not supported yet",
+                 faces): the general-position path stops here and the exact one takes over",
+                at.x, at.y, at.z
+            ),
+            BooleanError::NonManifoldResult { at } => write!(
+                f,
+                "the result would not be a manifold surface near ({:.6}, {:.6}, {:.6}): \
+                 its solids (or a solid and a cavity) meet only along an edge there; \
+                 move an operand off the contact, or union through the signed distance pillar",
                 at.x, at.y, at.z
             ),
         }
@@ -158,11 +175,33 @@ struct Event {
     position: DVec3,
 }
 
-/// Computes `operation` of the two operands.
+/// Computes `operation` of the two operands: in general position with
+/// rounded crossings, or, where the surfaces touch, in exact arithmetic.
 pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanError> {
     let tris = triangulate(input)?;
     let adjacency = Adjacency::new(input.points.len(), &tris);
     adjacency.check_closed(&tris)?;
+    match general_position(input, &tris, &adjacency, operation) {
+        Err(BooleanError::DegenerateContact { .. }) => exact::boolean(input, &tris, operation),
+        result => result,
+    }
+}
+
+/// The exact path alone, whatever the contacts (for tests that compare the
+/// two paths).
+pub fn boolean_exact(input: &Input, operation: Operation) -> Result<Output, BooleanError> {
+    let tris = triangulate(input)?;
+    Adjacency::new(input.points.len(), &tris).check_closed(&tris)?;
+    exact::boolean(input, &tris, operation)
+}
+
+/// The general-position path: refuses degenerate contacts.
+fn general_position(
+    input: &Input,
+    tris: &[Tri],
+    adjacency: &Adjacency,
+    operation: Operation,
+) -> Result<Output, BooleanError> {
     let points = &input.points;
     let (a_tris, b_tris): (Vec<u32>, Vec<u32>) = {
         let mut a = Vec::new();
@@ -191,14 +230,14 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
     let mut candidates = tree_a.overlapping_pairs(&tree_b);
     candidates.sort_unstable();
     for (ta, tb) in candidates {
-        let Some(pair) = crossing(&tris, points, ta, tb)? else {
+        let Some(pair) = crossing(tris, points, ta, tb)? else {
             continue;
         };
         let mut ids = [0u32; 2];
         for (k, (edge, tri)) in pair.into_iter().enumerate() {
             let key = (edge.0, edge.1, tri);
             ids[k] = *event_of.entry(key).or_insert_with(|| {
-                let t = tri_corners(&tris, points, tri);
+                let t = tri_corners(tris, points, tri);
                 events.push(Event {
                     edge,
                     position: edge_plane_point(points[edge.0 as usize], points[edge.1 as usize], t),
@@ -340,7 +379,7 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
                     continue;
                 };
                 let opposite = all_points[p.v[(k + 2) % 3] as usize];
-                let [o0, o1, o2] = tri_corners(&tris, points, other);
+                let [o0, o1, o2] = tri_corners(tris, points, other);
                 let n = (o1 - o0).cross(o2 - o0);
                 let len = n.length();
                 if len > 0.0 {
@@ -367,7 +406,7 @@ pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanErr
                     Operand::A => &b_tris,
                     Operand::B => &a_tris,
                 };
-                winding_number(c, other.iter().map(|&t| tri_corners(&tris, points, t))) > 0.5
+                winding_number(c, other.iter().map(|&t| tri_corners(tris, points, t))) > 0.5
             }
         };
         inside.insert(root, verdict);
@@ -955,6 +994,28 @@ impl Bvh {
         self.build(first + 1, right);
     }
 
+    /// The items of every leaf whose box overlaps the box `lo..hi`.
+    fn overlapping(&self, lo: DVec3, hi: DVec3) -> Vec<u32> {
+        let mut out = Vec::new();
+        if self.nodes.is_empty() {
+            return out;
+        }
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let x = &self.nodes[i];
+            if x.lo.cmpgt(hi).any() || x.hi.cmplt(lo).any() {
+                continue;
+            }
+            if x.count > 0 {
+                out.extend_from_slice(&self.items[x.start as usize..(x.start + x.count) as usize]);
+            } else {
+                stack.push(x.start as usize);
+                stack.push(x.start as usize + 1);
+            }
+        }
+        out
+    }
+
     /// Every pair of items, one of each tree, whose boxes overlap.
     fn overlapping_pairs(&self, other: &Bvh) -> Vec<(u32, u32)> {
         let mut out = Vec::new();
@@ -1178,20 +1239,136 @@ mod tests {
         assert!((volume(&i) - 1.0).abs() < 1e-12);
     }
 
+    fn boxes(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> Input {
+        let mut input = Input::default();
+        add_box(&mut input, a.0, a.1, Operand::A);
+        add_box(&mut input, b.0, b.1, Operand::B);
+        input
+    }
+
+    /// V − E + F of a closed result: 2 − 2·genus per component.
+    fn euler_characteristic(out: &Output) -> i64 {
+        let mut edges = rustc_hash::FxHashSet::default();
+        let mut verts = rustc_hash::FxHashSet::default();
+        for p in &out.polygons {
+            for k in 0..p.ring.len() {
+                verts.insert(p.ring[k]);
+                edges.insert(ordered(p.ring[k], p.ring[(k + 1) % p.ring.len()]));
+            }
+        }
+        verts.len() as i64 - edges.len() as i64 + out.polygons.len() as i64
+    }
+
     #[test]
-    fn coplanar_contact_is_refused_with_a_point_and_open_input_with_counts() {
-        let mut touching = Input::default();
-        add_box(&mut touching, DVec3::ZERO, DVec3::ONE, Operand::A);
-        add_box(
-            &mut touching,
-            DVec3::new(0.5, 0.5, 1.0),
-            DVec3::splat(2.0),
-            Operand::B,
-        );
-        assert!(matches!(
-            boolean(&touching, Operation::Union),
-            Err(BooleanError::DegenerateContact { .. })
-        ));
+    fn touching_coplanar_and_equal_boxes_are_computed_exactly() {
+        let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let unit = (DVec3::ZERO, DVec3::ONE);
+        // (B, volumes of A ∪ B, A − B, A ∩ B), A the unit cube.
+        let cases = [
+            ((v(1.0, 0.0, 0.0), v(2.0, 1.0, 1.0)), [2.0, 1.0, 0.0]),
+            ((v(1.0, 0.25, 0.25), v(2.0, 0.75, 1.25)), [1.5, 1.0, 0.0]),
+            ((v(0.25, 0.25, 1.0), v(1.25, 1.25, 2.0)), [2.0, 1.0, 0.0]),
+            ((v(0.5, 0.5, 0.5), v(1.5, 1.5, 1.0)), [1.375, 0.875, 0.125]),
+            (unit, [1.0, 0.0, 1.0]),
+            ((v(0.5, 0.0, 0.0), v(1.5, 1.0, 1.0)), [1.5, 0.5, 0.5]),
+            // B's edges pass through the middle of A's faces' diagonals.
+            (
+                (DVec3::splat(0.5), DVec3::splat(1.5)),
+                [1.875, 0.875, 0.125],
+            ),
+        ];
+        for (b, volumes) in cases {
+            let input = boxes(unit, b);
+            for (operation, expected) in [
+                Operation::Union,
+                Operation::Difference,
+                Operation::Intersection,
+            ]
+            .into_iter()
+            .zip(volumes)
+            {
+                let out = boolean(&input, operation).unwrap();
+                let label = format!("{b:?} {operation:?}");
+                assert!(closed(&out), "{label}");
+                assert!(
+                    (volume(&out) - expected).abs() < 1e-12,
+                    "{label}: {}",
+                    volume(&out)
+                );
+                if expected == 0.0 {
+                    assert!(out.polygons.is_empty(), "{label}");
+                } else {
+                    assert_eq!(euler_characteristic(&out), 2, "{label}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_cutter_flush_with_both_faces_of_a_slab_leaves_a_clean_hole() {
+        let slab = (DVec3::ZERO, DVec3::new(4.0, 1.0, 4.0));
+        let window = (DVec3::new(1.0, 0.0, 1.0), DVec3::new(3.0, 1.0, 3.0));
+        let out = boolean(&boxes(slab, window), Operation::Difference).unwrap();
+        assert!(closed(&out));
+        assert!((volume(&out) - 12.0).abs() < 1e-12, "{}", volume(&out));
+        assert_eq!(euler_characteristic(&out), 0, "genus 1");
+        // The window's flush faces are gone; its four sides line the hole.
+        let reversed = out.polygons.iter().filter(|p| p.reversed).count();
+        assert!(reversed >= 4, "{reversed}");
+    }
+
+    #[test]
+    fn the_exact_path_agrees_with_the_general_position_path() {
+        for offset in [
+            DVec3::new(0.5, 0.4, 0.3),
+            DVec3::splat(0.2),
+            DVec3::splat(5.0),
+        ] {
+            let input = two_boxes(offset);
+            for operation in [
+                Operation::Union,
+                Operation::Difference,
+                Operation::Intersection,
+            ] {
+                let fast = boolean(&input, operation).unwrap();
+                let exact = boolean_exact(&input, operation).unwrap();
+                assert!(closed(&exact));
+                assert!(
+                    (volume(&fast) - volume(&exact)).abs() < 1e-12,
+                    "{operation:?} {} {}",
+                    volume(&fast),
+                    volume(&exact)
+                );
+                assert_eq!(euler_characteristic(&fast), euler_characteristic(&exact));
+            }
+        }
+    }
+
+    #[test]
+    fn solids_touching_along_an_edge_or_at_a_corner_get_their_own_vertices() {
+        for (b, copies) in [
+            ((DVec3::new(1.0, 1.0, 0.0), DVec3::new(2.0, 2.0, 1.0)), 2),
+            ((DVec3::ONE, DVec3::splat(2.0)), 1),
+        ] {
+            let input = boxes((DVec3::ZERO, DVec3::ONE), b);
+            let union = boolean(&input, Operation::Union).unwrap();
+            assert!(closed(&union));
+            assert!((volume(&union) - 2.0).abs() < 1e-12);
+            // Two cubes: 16 vertices, 2 components of Euler characteristic 2.
+            assert_eq!(euler_characteristic(&union), 4, "{b:?}");
+            let copied: Vec<_> = union
+                .sources
+                .iter()
+                .filter(|s| matches!(s, PointSource::Copy(_)))
+                .collect();
+            assert_eq!(copied.len(), copies, "{b:?}");
+            assert!(boolean(&input, Operation::Intersection)
+                .unwrap()
+                .polygons
+                .is_empty());
+            let d = boolean(&input, Operation::Difference).unwrap();
+            assert!(closed(&d) && (volume(&d) - 1.0).abs() < 1e-12);
+        }
         let mut open = two_boxes(DVec3::splat(0.5));
         open.polygons.remove(0);
         assert_eq!(
