@@ -116,6 +116,9 @@ pub enum BooleanError {
     /// The result's solids would meet along an edge (or the exact cut of a
     /// triangle failed there).
     NonManifoldResult { at: DVec3 },
+    /// The exact path's work would exceed its bound: a face touches the
+    /// other operand in too many places.
+    TooManyContacts { at: DVec3, contacts: usize },
 }
 
 impl std::fmt::Display for BooleanError {
@@ -144,6 +147,14 @@ impl std::fmt::Display for BooleanError {
                 "the operands touch without crossing cleanly near ({:.6}, {:.6}, {:.6}) \
                  (a vertex on the other surface, an edge through an edge, or coplanar \
                  faces): the general-position path stops here and the exact one takes over",
+                at.x, at.y, at.z
+            ),
+            BooleanError::TooManyContacts { at, contacts } => write!(
+                f,
+                "a face near ({:.6}, {:.6}, {:.6}) touches the other operand in {contacts} places: \
+                 the exact path for touching contacts cuts each face in time quadratic in its \
+                 contacts, and stops before starting work that large; subdivide the larger \
+                 faces first, or move an operand off the contact",
                 at.x, at.y, at.z
             ),
             BooleanError::NonManifoldResult { at } => write!(
@@ -1369,6 +1380,18 @@ mod tests {
             let d = boolean(&input, Operation::Difference).unwrap();
             assert!(closed(&d) && (volume(&d) - 1.0).abs() < 1e-12);
         }
+        // Work beyond the exact path's bound: refused before it starts,
+        // naming the face with the most contacts.
+        let input = boxes(
+            (DVec3::ZERO, DVec3::ONE),
+            (DVec3::new(0.5, 0.0, 0.0), DVec3::new(1.5, 1.0, 1.0)),
+        );
+        let tris = triangulate(&input).unwrap();
+        let err = exact::bounded(&input, &tris, Operation::Union, 10).unwrap_err();
+        assert!(
+            matches!(err, BooleanError::TooManyContacts { contacts, .. } if contacts > 3),
+            "{err}"
+        );
         let mut open = two_boxes(DVec3::splat(0.5));
         open.polygons.remove(0);
         assert_eq!(
