@@ -189,12 +189,34 @@ struct Event {
 /// Computes `operation` of the two operands: in general position with
 /// rounded crossings, or, where the surfaces touch, in exact arithmetic.
 pub fn boolean(input: &Input, operation: Operation) -> Result<Output, BooleanError> {
+    prepare(input)?.boolean(input, operation)
+}
+
+/// The operands triangulated and checked closed: what a caller may check
+/// further (that neither crosses itself) before the work starts.
+pub struct Prepared {
+    tris: Vec<Tri>,
+    adjacency: Adjacency,
+}
+
+/// Triangulates the operands and checks each closed and consistently
+/// wound.
+pub fn prepare(input: &Input) -> Result<Prepared, BooleanError> {
     let tris = triangulate(input)?;
     let adjacency = Adjacency::new(input.points.len(), &tris);
     adjacency.check_closed(&tris)?;
-    match general_position(input, &tris, &adjacency, operation) {
-        Err(BooleanError::DegenerateContact { .. }) => exact::boolean(input, &tris, operation),
-        result => result,
+    Ok(Prepared { tris, adjacency })
+}
+
+impl Prepared {
+    /// Computes `operation` of the operands `self` was prepared from.
+    pub fn boolean(&self, input: &Input, operation: Operation) -> Result<Output, BooleanError> {
+        match general_position(input, &self.tris, &self.adjacency, operation) {
+            Err(BooleanError::DegenerateContact { .. }) => {
+                exact::boolean(input, &self.tris, operation)
+            }
+            result => result,
+        }
     }
 }
 

@@ -28,7 +28,6 @@ pub fn boolean(
     for &f in a.iter().chain(&b) {
         mesh.check_face(f)?;
     }
-    check_not_self_crossing(mesh, &a, &b)?;
     // Local point indices, in first-use order over the faces in id order
     // (by vertex slot: no hashing).
     let mut index: Vec<u32> = vec![u32::MAX; mesh.vert_capacity()];
@@ -53,8 +52,12 @@ pub fn boolean(
             faces.push(f);
         }
     }
-    let out = arrangement::boolean(&input, operation)
-        .map_err(|e| OpError::Degenerate(format!("boolean: {e}")))?;
+    let error = |e: arrangement::BooleanError| OpError::Degenerate(format!("boolean: {e}"));
+    // Closed first (cheap, and the more basic fault), then not crossing
+    // itself (the exact search), then the work.
+    let prepared = arrangement::prepare(&input).map_err(error)?;
+    check_not_self_crossing(mesh, &a, &b)?;
+    let out = prepared.boolean(&input, operation).map_err(error)?;
 
     let mut made = Selection::new();
     // Result points: input vertices stay; crossings are new vertices.
