@@ -258,12 +258,26 @@ fn general_position(
     // Candidate pairs from both hierarchies at once: subtrees of A far
     // from B's surface are dropped whole. Sorted, so events are numbered
     // in one order whatever the trees look like.
-    let tree_a = Bvh::new(&a_tris, |t| bounds(&corners(t)));
-    let tree_b = Bvh::new(&b_tris, |t| bounds(&corners(t)));
+    // One tree per core (the trees do not depend on which builds first).
+    let (tree_a, tree_b) = rayon::join(
+        || Bvh::new(&a_tris, |t| bounds(&corners(t))),
+        || Bvh::new(&b_tris, |t| bounds(&corners(t))),
+    );
     let mut candidates = tree_a.overlapping_pairs(&tree_b);
     candidates.sort_unstable();
-    for (ta, tb) in candidates {
-        let Some(pair) = crossing(tris, points, ta, tb)? else {
+    // The exact tests on both cores; their results read in candidate order
+    // (the first degenerate pair in that order stops it, whatever the
+    // threads did).
+    let crossings: Vec<_> = {
+        use rayon::prelude::*;
+        candidates
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&(ta, tb)| crossing(tris, points, ta, tb))
+            .collect()
+    };
+    for (&(ta, tb), found) in candidates.iter().zip(crossings) {
+        let Some(pair) = found? else {
             continue;
         };
         let mut ids = [0u32; 2];

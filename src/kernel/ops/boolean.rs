@@ -10,6 +10,8 @@
 
 use super::{canonical, OpError, Selection};
 use crate::geom::boolean::{self as arrangement, Input, Operand, Operation, PointSource};
+use crate::geom::indexed::IndexedMesh;
+use crate::kernel::intersect::{indexed_self_intersection_search, PairLimits};
 use crate::kernel::{FaceId, Mesh, VertId};
 
 pub use crate::geom::boolean::Operation as BooleanOperation;
@@ -56,8 +58,14 @@ pub fn boolean(
     // Closed first (cheap, and the more basic fault), then not crossing
     // itself (the exact search), then the work.
     let prepared = arrangement::prepare(&input).map_err(error)?;
-    check_not_self_crossing(mesh, &a, &b)?;
-    let out = prepared.boolean(&input, operation).map_err(error)?;
+    // The search and the boolean side by side (the search's verdict wins;
+    // neither depends on the other or on the threads).
+    let (checked, out) = rayon::join(
+        || check_not_self_crossing(&input, &faces),
+        || prepared.boolean(&input, operation),
+    );
+    checked?;
+    let out = out.map_err(error)?;
 
     let mut made = Selection::new();
     // Result points: input vertices stay; crossings are new vertices.
@@ -131,31 +139,37 @@ pub fn boolean(
 }
 
 /// An operand that crosses itself has no inside to speak of: refused,
-/// naming the first pair of faces (the mesh's self-intersection search,
-/// exact; pairs of one face from each operand are the boolean's work).
-fn check_not_self_crossing(mesh: &Mesh, a: &[FaceId], b: &[FaceId]) -> Result<(), OpError> {
-    let mut operand = vec![0u8; mesh.face_capacity()];
-    for &f in a {
-        operand[f.index()] = 1;
+/// naming the first pair of faces. Each operand is searched on its own
+/// (the exact search of `graftal info`, over its polygons as gathered):
+/// pairs of one face from each operand are the boolean's work, and faces
+/// outside both are not its business.
+fn check_not_self_crossing(input: &Input, faces: &[FaceId]) -> Result<(), OpError> {
+    for (operand, name) in [
+        (Operand::A, "the selection"),
+        (Operand::B, "the `with` part"),
+    ] {
+        let mut soup = IndexedMesh::new();
+        soup.positions = input.points.iter().map(|p| p.to_array()).collect();
+        let mut polygon_face: Vec<FaceId> = Vec::new();
+        for ((ring, o), &face) in input.polygons.iter().zip(faces) {
+            if *o == operand {
+                soup.push_polygon(ring);
+                polygon_face.push(face);
+            }
+        }
+        let found = indexed_self_intersection_search(&soup, |_| PairLimits::UNLIMITED);
+        if let Some(&(f, g)) = found.pairs.first() {
+            return Err(OpError::Degenerate(format!(
+                "boolean: {name} crosses itself: {} pairs of its faces intersect (the first: \
+                 faces {} and {}); fuse it first (`sdf_boolean`, or `merge` where the crossing \
+                 is coincident copies)",
+                found.count,
+                polygon_face[f.index()].index(),
+                polygon_face[g.index()].index()
+            )));
+        }
     }
-    for &f in b {
-        operand[f.index()] = 2;
-    }
-    let crossing: Vec<(FaceId, FaceId)> = crate::kernel::intersect::self_intersections(mesh)
-        .into_iter()
-        .filter(|(f, g)| operand[f.index()] != 0 && operand[f.index()] == operand[g.index()])
-        .collect();
-    match crossing.first() {
-        None => Ok(()),
-        Some(&(f, g)) => Err(OpError::Degenerate(format!(
-            "boolean: {} crosses itself: {} pairs of its faces intersect (the first: faces {} and {}); \
-             fuse it first (`sdf_boolean`, or `merge` where the crossing is coincident copies)",
-            if operand[f.index()] == 1 { "the selection" } else { "the `with` part" },
-            crossing.len(),
-            f.index(),
-            g.index()
-        ))),
-    }
+    Ok(())
 }
 
 #[cfg(test)]
