@@ -781,6 +781,28 @@ fn ray_crossings(u: &[P3; 3], c: &P3, m: &V3) -> [i32; 2] {
     out
 }
 
+/// The winding number at `c` (off the surface) of the closed shells whose
+/// triangles `tree` holds: crossings of the ray along +x, each decided in
+/// floating point where the bounds allow and exactly (with the symbolic
+/// perturbation of [`ray_crossings`]) where not. O(log n) boxes a ray for
+/// a well-spread surface, where summing solid angles reads every triangle.
+pub(super) fn ray_winding(tree: &Bvh, corners: &dyn Fn(u32) -> [DVec3; 3], c: DVec3) -> i32 {
+    let pad = DVec3::splat(1e-9) * (1.0 + c.abs());
+    let hi = DVec3::new(f64::INFINITY, c.y + pad.y, c.z + pad.z);
+    let still = [Q::zero(), Q::zero(), Q::zero()];
+    let mut exact_c: Option<P3> = None;
+    tree.overlapping(c - pad, hi)
+        .into_iter()
+        .map(|t| {
+            let f = corners(t);
+            ray_crossings_filtered(f, c).unwrap_or_else(|| {
+                let cq = exact_c.get_or_insert_with(|| exact(c));
+                ray_crossings(&f.map(exact), cq, &still)
+            })[0]
+        })
+        .sum()
+}
+
 /// Whether `c` lies on triangle `t` (on its plane, inside or on its
 /// boundary).
 fn on_triangle(t: &[P3; 3], c: &P3) -> bool {

@@ -18,7 +18,8 @@
 //!    operand. Patches along the curve are classified by which side of the
 //!    crossing triangle's plane their pieces lie (the other operand's
 //!    inside is behind its outward faces); patches that touch no curve by
-//!    the winding number of the other operand at one of their points.
+//!    the winding number of the other operand at one of their points (a ray
+//!    cast through its hierarchy, exact where rounding could decide it).
 //! 4. The operation keeps A outside B and B outside A (union), A inside B
 //!    and B inside A (intersection), or A outside B and B inside A,
 //!    reversed (difference). Faces no event touched come back whole.
@@ -450,10 +451,10 @@ fn general_position(
                     + all_points[p.v[2] as usize])
                     / 3.0;
                 let other = match tris[p.tri as usize].operand {
-                    Operand::A => &b_tris,
-                    Operand::B => &a_tris,
+                    Operand::A => &tree_b,
+                    Operand::B => &tree_a,
                 };
-                winding_number(c, other.iter().map(|&t| tri_corners(tris, points, t))) > 0.5
+                exact::ray_winding(other, &|t| tri_corners(tris, points, t), c) > 0
             }
         };
         inside.insert(root, verdict);
@@ -951,16 +952,6 @@ fn retriangulate(
         return Err(degenerate());
     }
     Ok(())
-}
-
-/// Generalised winding number of the triangles at `p` (Van Oosterom and
-/// Strackee's solid angle): about 1 inside a closed outward shell, 0
-/// outside.
-fn winding_number(p: DVec3, tris: impl Iterator<Item = [DVec3; 3]>) -> f64 {
-    let total: f64 = tris
-        .map(|[a, b, c]| super::polygon::solid_angle(a - p, b - p, c - p))
-        .sum();
-    total / (4.0 * std::f64::consts::PI)
 }
 
 /// A bounding-volume hierarchy over triangle boxes (median splits).
