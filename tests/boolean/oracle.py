@@ -11,7 +11,9 @@ edge used exactly twice, once each way (closed, edge-manifold), and against
 manifold: the signed volume (divergence theorem in float64, polygons fanned)
 to 1e-9 relative, the number of edge-connected components and each one's
 volume and genus (a cavity is a component of negative volume, as Manifold's
-`decompose` gives it).
+`decompose` gives it), and no two faces crossing (`graftal info`'s exact
+search; solids of a touching case that meet along an edge or at a point,
+each with its own vertices there, are excused).
 
 The cases (deterministic, numpy's seeded RNG): 100 random pairs of cubes,
 rotated boxes, UV spheres and icospheres, overlapping in general position,
@@ -616,6 +618,16 @@ def graftal(folder, rules):
         return None, "unreadable output: %r" % e, False
 
 
+def self_intersections(path):
+    """The face pairs `graftal info` finds crossing (exact, excusing shared
+    vertices and edges), or None."""
+    run = subprocess.run([GRAFTAL, "info", path], capture_output=True, text=True, timeout=TIMEOUT)
+    for line in run.stdout.splitlines():
+        if line.startswith("self-intersections:"):
+            return int(line.split()[1])
+    return None
+
+
 def compare(name, operation, a, b, degenerate):
     """Run one case; return its status: "ok", "refused" or "FAIL"."""
     origin = (a[0].mean(axis=0) + b[0].mean(axis=0)) / 2
@@ -655,6 +667,16 @@ def compare(name, operation, a, b, degenerate):
         elif any(abs(u - v) > REL * scale for (u, _), (v, _) in zip(ours, theirs)):
             problems.append("component volumes %s, manifold %s" % (
                 ["%.9g" % v for v, _ in ours], ["%.9g" % v for v, _ in theirs]))
+    if not problems:
+        crossing = self_intersections(os.path.join(folder, "out.ply"))
+        # Solids that touch along an edge or at a point get their own
+        # vertices there (as manifold's do): their faces meet without
+        # sharing vertices, which the search counts. Anywhere else, none.
+        touching = len(np.unique(mesh[0], axis=0)) < len(mesh[0])
+        if crossing is None:
+            problems.append("graftal info gave no self-intersection count")
+        elif crossing > 0 and not (degenerate and touching):
+            problems.append("%d self-intersecting face pairs" % crossing)
     print("%s graftal %-20.15g manifold %-20.15g rel %.1e  %s" % (
         label, got, expected, rel, "ok" if not problems else "FAIL: " + "; ".join(problems)))
     return "FAIL" if problems else "ok"

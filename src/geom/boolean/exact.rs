@@ -1087,7 +1087,114 @@ pub(super) fn bounded(
         Some(k) => made[k].clone(),
     };
     split_touching(&mut out, &exact_of)?;
+    collapse_rounded_edges(&mut out, n_input);
     Ok(out)
+}
+
+/// Distinct exact points can lie closer than f64 resolves (a crossing
+/// 1e-16 from another): rounded, their thin triangles may fold over and
+/// cross their neighbours. Each edge with a made point at one end that
+/// rounding left a few ulps long is collapsed onto its other end (an
+/// input point where there is one) where the link condition holds — the
+/// two triangles on the edge go, the surface stays closed and manifold.
+pub(super) fn collapse_rounded_edges(out: &mut Output, n_input: usize) {
+    let close = |a: DVec3, b: DVec3| {
+        let scale = a.abs().max(b.abs()).max_element().max(f64::MIN_POSITIVE);
+        (a - b).abs().max_element() <= 8.0 * f64::EPSILON * scale
+    };
+    let mut candidates: Vec<(u32, u32)> = Vec::new();
+    for p in &out.polygons {
+        let n = p.ring.len();
+        for k in 0..n {
+            let (a, b) = (p.ring[k], p.ring[(k + 1) % n]);
+            let made = a as usize >= n_input || b as usize >= n_input;
+            if a < b && made && close(out.points[a as usize], out.points[b as usize]) {
+                candidates.push((a, b));
+            }
+        }
+    }
+    if candidates.is_empty() {
+        return;
+    }
+    candidates.sort_unstable();
+    let mut polygons_of: FxHashMap<u32, Vec<usize>> = FxHashMap::default();
+    for (i, p) in out.polygons.iter().enumerate() {
+        for &v in &p.ring {
+            polygons_of.entry(v).or_default().push(i);
+        }
+    }
+    let mut removed = vec![false; out.polygons.len()];
+    let mut dead: rustc_hash::FxHashSet<u32> = Default::default();
+    for (a, b) in candidates {
+        if dead.contains(&a) || dead.contains(&b) {
+            continue;
+        }
+        // Keep the input point (or the lower index).
+        let (keep, gone) = if b as usize >= n_input {
+            (a, b)
+        } else {
+            (b, a)
+        };
+        let live = |v: u32, removed: &[bool]| -> Vec<usize> {
+            polygons_of[&v]
+                .iter()
+                .copied()
+                .filter(|&i| !removed[i])
+                .collect()
+        };
+        let (pk, pg) = (live(keep, &removed), live(gone, &removed));
+        let shared: Vec<usize> = pg.iter().copied().filter(|i| pk.contains(i)).collect();
+        if shared.len() != 2 || shared.iter().any(|&i| out.polygons[i].ring.len() != 3) {
+            continue;
+        }
+        let neighbours = |v: u32, list: &[usize]| -> rustc_hash::FxHashSet<u32> {
+            let mut set = rustc_hash::FxHashSet::default();
+            for &i in list {
+                let r = &out.polygons[i].ring;
+                let k = r.iter().position(|&x| x == v).expect("on it");
+                set.insert(r[(k + 1) % r.len()]);
+                set.insert(r[(k + r.len() - 1) % r.len()]);
+            }
+            set
+        };
+        let (nk, ng) = (neighbours(keep, &pk), neighbours(gone, &pg));
+        let common: Vec<u32> = nk.iter().copied().filter(|v| ng.contains(v)).collect();
+        let opposite: Vec<u32> = shared
+            .iter()
+            .map(|&i| third_u32(&out.polygons[i].ring, keep, gone))
+            .collect();
+        if common.len() != 2 || !opposite.iter().all(|v| common.contains(v)) {
+            continue;
+        }
+        for &i in &shared {
+            removed[i] = true;
+        }
+        for &i in &pg {
+            if removed[i] {
+                continue;
+            }
+            for v in &mut out.polygons[i].ring {
+                if *v == gone {
+                    *v = keep;
+                }
+            }
+            out.polygons[i].whole = false;
+            polygons_of.get_mut(&keep).expect("listed").push(i);
+        }
+        dead.insert(gone);
+    }
+    let mut k = 0;
+    out.polygons.retain(|_| {
+        k += 1;
+        !removed[k - 1]
+    });
+}
+
+fn third_u32(ring: &[u32], a: u32, b: u32) -> u32 {
+    *ring
+        .iter()
+        .find(|&&v| v != a && v != b)
+        .expect("a triangle")
 }
 
 /// One use of an edge: polygon, corner where the edge starts.

@@ -522,6 +522,7 @@ fn general_position(
     // Canonical order: by source polygon, whole ones first, then pieces in
     // the order they were made.
     out.polygons.sort_by_key(|p| (p.source, !p.whole));
+    exact::collapse_rounded_edges(&mut out, n_points as usize);
     Ok(out)
 }
 
@@ -1353,6 +1354,31 @@ mod tests {
         // The window's flush faces are gone; its four sides line the hole.
         let reversed = out.polygons.iter().filter(|p| p.reversed).count();
         assert!(reversed >= 4, "{reversed}");
+    }
+
+    #[test]
+    fn an_edge_rounding_left_a_few_ulps_long_is_collapsed_onto_its_input_end() {
+        // A tetrahedron whose edge 0-1 is split by a made point 1 ulp from
+        // corner 0: its two triangles at that edge go, the rest close up.
+        let a = DVec3::new(0.3, 0.0, 0.0);
+        let made = DVec3::new(0.3 + f64::EPSILON / 4.0, 0.0, 0.0);
+        let mut out = Output {
+            points: vec![a, DVec3::X, DVec3::Y, DVec3::Z, made],
+            sources: vec![],
+            polygons: vec![],
+        };
+        for ring in [[0, 4, 2], [4, 1, 2], [4, 0, 3], [1, 4, 3], [0, 2, 3], [1, 3, 2]] {
+            out.polygons.push(OutPolygon {
+                ring: ring.to_vec(),
+                source: 0,
+                whole: false,
+                reversed: false,
+            });
+        }
+        exact::collapse_rounded_edges(&mut out, 4);
+        assert_eq!(out.polygons.len(), 4);
+        assert!(closed(&out));
+        assert!(out.polygons.iter().all(|p| !p.ring.contains(&4)));
     }
 
     #[test]
