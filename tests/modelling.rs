@@ -516,3 +516,42 @@ fn the_documentation_pictures_rule_files_run() {
         assert_eq!(s["mesh"]["watertight"], true, "{shell}");
     }
 }
+
+/// The wall's windows are flush with both of its faces and the cup's
+/// handle lies in the lathe's seam plane: touching contacts, on the exact
+/// path. Every seed: one closed solid of the right genus whose faces do
+/// not cross (rounding the exact points must not fold a triangle over).
+#[test]
+fn touching_examples_come_out_closed_and_without_crossing_faces() {
+    let d = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (example, seeds, euler) in [("wall", 0..10, -4), ("cup", 0..4, 0)] {
+        let rules = std::fs::read_to_string(root.join(format!("rules/{example}.toml"))).unwrap();
+        std::fs::write(d.path().join("r.toml"), &rules).unwrap();
+        for seed in seeds {
+            let o = graftal_in(
+                d.path(),
+                &[
+                    "run",
+                    "r.toml",
+                    "--seed",
+                    &seed.to_string(),
+                    "-o",
+                    "r.ply",
+                    "--stats",
+                    "-",
+                ],
+            );
+            assert!(o.status.success(), "{}", stderr(&o));
+            let s: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+            let m = &s["mesh"];
+            assert_eq!(m["watertight"], true, "{example} {seed}: {m}");
+            assert_eq!(m["components"], 1, "{example} {seed}: {m}");
+            assert_eq!(m["euler_characteristic"], euler, "{example} {seed}: {m}");
+            assert_eq!(
+                m["self_intersecting_face_pairs"], 0,
+                "{example} {seed}: {m}"
+            );
+        }
+    }
+}

@@ -920,6 +920,9 @@ pub(super) fn bounded(
         triangle: Result<[P3; 3], u32>,
         polygon: u32,
         whole: bool,
+        /// An input triangle that its contacts left as it was (they only
+        /// touch its corners or edges without a point on them).
+        intact: bool,
     }
     let mut faces: Vec<Face> = Vec::new();
     // Result edges on a contact: a patch ends there.
@@ -941,6 +944,7 @@ pub(super) fn bounded(
                 triangle: Err(t),
                 polygon: tri.polygon,
                 whole: false,
+                intact: true,
             });
             continue;
         };
@@ -961,8 +965,10 @@ pub(super) fn bounded(
             let (a, b) = (ids[i], ids[j]);
             contact_edges.insert((a.min(b), a.max(b)));
         }
+        let intact = cut.points.len() == 3;
         for l in cut.triangles {
             faces.push(Face {
+                intact,
                 ring: l.map(|i| ids[i]).to_vec(),
                 triangle: Ok(l.map(|i| cut.points[i].clone())),
                 polygon: tri.polygon,
@@ -981,6 +987,7 @@ pub(super) fn bounded(
                 triangle: Err(t),
                 polygon: k as u32,
                 whole: true,
+                intact: true,
             });
         }
     }
@@ -1054,6 +1061,8 @@ pub(super) fn bounded(
         (front != back).then_some(front)
     };
     let mut label: FxHashMap<u32, Option<bool>> = FxHashMap::default();
+    // Kept pieces by polygon, in order: (face, reversed).
+    let mut kept: Vec<(usize, bool)> = Vec::new();
     for (i, f) in faces.iter().enumerate() {
         let root = patches.find(i as u32);
         let reversed = *label.entry(root).or_insert_with(|| match &f.triangle {
@@ -1061,21 +1070,44 @@ pub(super) fn bounded(
             Err(t) => verdict(&corners_q(*t), operand_of(f)),
         });
         if let Some(reversed) = reversed {
-            let mut ring = f.ring.clone();
-            let whole = f.whole
-                && ring
-                    .iter()
-                    .zip(&input.polygons[f.polygon as usize].0)
-                    .all(|(a, b)| a == b);
-            if reversed {
-                ring.reverse();
+            kept.push((i, reversed));
+        }
+    }
+    let mut triangles_of = vec![0usize; input.polygons.len()];
+    for tri in tris {
+        triangles_of[tri.polygon as usize] += 1;
+    }
+    let emit = |ring: Vec<u32>, polygon: u32, whole: bool, reversed: bool, out: &mut Output| {
+        let mut ring = ring;
+        let whole = whole && ring == input.polygons[polygon as usize].0;
+        if reversed {
+            ring.reverse();
+        }
+        out.polygons.push(OutPolygon {
+            ring,
+            source: polygon,
+            whole,
+            reversed,
+        });
+    };
+    for run in kept.chunk_by(|x, y| faces[x.0].polygon == faces[y.0].polygon) {
+        let polygon = faces[run[0].0].polygon;
+        let reversed = run[0].1;
+        // A touched polygon whose contacts left every triangle as it was
+        // and that is kept whole one way: the polygon, not its triangles.
+        let unchanged = run.len() == triangles_of[polygon as usize]
+            && run.iter().all(|&(i, r)| faces[i].intact && r == reversed);
+        if faces[run[0].0].whole || (unchanged && run.len() > 1) {
+            let ring = input.polygons[polygon as usize]
+                .0
+                .iter()
+                .map(|&v| representative[v as usize])
+                .collect();
+            emit(ring, polygon, true, reversed, &mut out);
+        } else {
+            for &(i, r) in run {
+                emit(faces[i].ring.clone(), polygon, false, r, &mut out);
             }
-            out.polygons.push(OutPolygon {
-                ring,
-                source: f.polygon,
-                whole,
-                reversed,
-            });
         }
     }
     out.polygons.sort_by_key(|p| (p.source, !p.whole));
@@ -1088,6 +1120,7 @@ pub(super) fn bounded(
     };
     split_touching(&mut out, &exact_of)?;
     collapse_rounded_edges(&mut out, n_input);
+    flip_rounded_caps(&mut out, n_input);
     Ok(out)
 }
 
@@ -1188,6 +1221,82 @@ pub(super) fn collapse_rounded_edges(out: &mut Output, n_input: usize) {
         k += 1;
         !removed[k - 1]
     });
+}
+
+/// A made point a few ulps from the far edge of its triangle (a crossing
+/// that lies 1e-17 off an edge in exact arithmetic) leaves a flat
+/// triangle once rounded, and the long edge then passes the wrong side of
+/// the point. The long edge is flipped to end at the point instead, where
+/// both new triangles come out wound as the old ones (Shewchuk's cure for
+/// caps), until no such triangle is left.
+pub(super) fn flip_rounded_caps(out: &mut Output, n_input: usize) {
+    let mut edge: FxHashMap<(u32, u32), usize> = FxHashMap::default();
+    for (i, p) in out.polygons.iter().enumerate() {
+        let n = p.ring.len();
+        for k in 0..n {
+            edge.insert((p.ring[k], p.ring[(k + 1) % n]), i);
+        }
+    }
+    let pos = |v: u32, out: &Output| out.points[v as usize];
+    for _pass in 0..4 {
+        let mut flipped = false;
+        for i in 0..out.polygons.len() {
+            if out.polygons[i].ring.len() != 3 {
+                continue;
+            }
+            let r = out.polygons[i].ring.clone();
+            // (u, v) its longest edge, w the corner across.
+            let k = (0..3)
+                .max_by(|&x, &y| {
+                    let len = |k: usize| (pos(r[(k + 1) % 3], out) - pos(r[k], out)).length();
+                    len(x).total_cmp(&len(y))
+                })
+                .expect("three edges");
+            let (u, v, w) = (r[k], r[(k + 1) % 3], r[(k + 2) % 3]);
+            let (pu, pv, pw) = (pos(u, out), pos(v, out), pos(w, out));
+            let scale = pu.abs().max(pv.abs()).max(pw.abs()).max_element();
+            let long = (pv - pu).length();
+            let flat = (pv - pu).cross(pw - pu).length() <= 32.0 * f64::EPSILON * long * scale;
+            if !flat || (w as usize) < n_input {
+                continue;
+            }
+            let Some(&j) = edge.get(&(v, u)) else {
+                continue;
+            };
+            let rj = out.polygons[j].ring.clone();
+            if rj.len() != 3 || edge.contains_key(&(w, third_u32(&rj, u, v))) {
+                continue;
+            }
+            let x = third_u32(&rj, u, v);
+            let px = pos(x, out);
+            let n = (pu - pv).cross(px - pv);
+            let wound = |a: DVec3, b: DVec3, c: DVec3| (b - a).cross(c - a).dot(n) > 0.0;
+            if !(wound(pu, px, pw) && wound(px, pv, pw)) {
+                continue;
+            }
+            for (a, b) in [(u, v), (v, w), (w, u), (v, u), (u, x), (x, v)] {
+                edge.remove(&(a, b));
+            }
+            out.polygons[i].ring = vec![u, x, w];
+            out.polygons[j].ring = vec![x, v, w];
+            for (a, b, p) in [
+                (u, x, i),
+                (x, w, i),
+                (w, u, i),
+                (x, v, j),
+                (v, w, j),
+                (w, x, j),
+            ] {
+                edge.insert((a, b), p);
+            }
+            out.polygons[i].whole = false;
+            out.polygons[j].whole = false;
+            flipped = true;
+        }
+        if !flipped {
+            break;
+        }
+    }
 }
 
 fn third_u32(ring: &[u32], a: u32, b: u32) -> u32 {

@@ -523,6 +523,7 @@ fn general_position(
     // the order they were made.
     out.polygons.sort_by_key(|p| (p.source, !p.whole));
     exact::collapse_rounded_edges(&mut out, n_points as usize);
+    exact::flip_rounded_caps(&mut out, n_points as usize);
     Ok(out)
 }
 
@@ -1367,7 +1368,14 @@ mod tests {
             sources: vec![],
             polygons: vec![],
         };
-        for ring in [[0, 4, 2], [4, 1, 2], [4, 0, 3], [1, 4, 3], [0, 2, 3], [1, 3, 2]] {
+        for ring in [
+            [0, 4, 2],
+            [4, 1, 2],
+            [4, 0, 3],
+            [1, 4, 3],
+            [0, 2, 3],
+            [1, 3, 2],
+        ] {
             out.polygons.push(OutPolygon {
                 ring: ring.to_vec(),
                 source: 0,
