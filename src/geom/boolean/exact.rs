@@ -41,7 +41,8 @@ use rustc_hash::FxHashMap;
 use std::collections::VecDeque;
 
 use super::{
-    bounds, BooleanError, Bvh, Input, Operand, Operation, OutPolygon, Output, PointSource, Tri,
+    bounds, sign, BooleanError, Bvh, Input, Operand, Operation, OutPolygon, Output, PointSource,
+    Tri,
 };
 use crate::geom::predicates::{orient3d, triangle_triangle_exact};
 
@@ -241,25 +242,15 @@ fn orient2_sign(a: &P3, b: &P3, c: &P3, (i, j): (usize, usize)) -> i8 {
     }
 }
 
-fn sign_f64(x: f64) -> i8 {
-    if x > 0.0 {
-        1
-    } else if x < 0.0 {
-        -1
-    } else {
-        0
-    }
-}
-
 /// The contact of two triangles as segments (`a == b` for a lone point);
 /// empty when they do not meet. `tf`/`uf` are the same corners in f64, for
 /// the exact orientation filter.
 fn contact(t: &[P3; 3], tf: [DVec3; 3], u: &[P3; 3], uf: [DVec3; 3]) -> Vec<(P3, P3)> {
-    let st = tf.map(|p| sign_f64(orient3d(uf[0], uf[1], uf[2], p)));
+    let st = tf.map(|p| sign(orient3d(uf[0], uf[1], uf[2], p)));
     if st.iter().all(|&s| s == st[0] && s != 0) {
         return Vec::new();
     }
-    let su = uf.map(|p| sign_f64(orient3d(tf[0], tf[1], tf[2], p)));
+    let su = uf.map(|p| sign(orient3d(tf[0], tf[1], tf[2], p)));
     if su.iter().all(|&s| s == su[0] && s != 0) {
         return Vec::new();
     }
@@ -422,7 +413,7 @@ impl Planar {
                 + (dby * dcx).abs()
                 + size * (dbx.abs() + dby.abs() + dcx.abs() + dcy.abs()));
         if o.abs() > err && o.is_finite() {
-            sign_f64(o)
+            sign(o)
         } else {
             orient2_sign(&self.points[a], &self.points[b], &self.points[c], self.axes)
         }
@@ -610,7 +601,8 @@ fn has_directed(t: &[usize; 3], a: usize, b: usize) -> bool {
     (0..3).any(|k| t[k] == a && t[(k + 1) % 3] == b)
 }
 
-fn third(t: &[usize; 3], a: usize, b: usize) -> usize {
+/// The corner of triangle `t` that is neither `a` nor `b`.
+fn third<T: Copy + PartialEq>(t: &[T], a: T, b: T) -> T {
     *t.iter().find(|&&v| v != a && v != b).expect("a triangle")
 }
 
@@ -676,7 +668,7 @@ fn recover_edge(
 /// they do not. `cf` is `c` rounded.
 fn ray_crossings_filtered(u: [DVec3; 3], cf: DVec3) -> Option<[i32; 2]> {
     const BOUND: f64 = 16.0 * f64::EPSILON;
-    let nx = sign_f64(robust::orient2d(
+    let nx = sign(robust::orient2d(
         robust::Coord {
             x: u[0].y,
             y: u[0].z,
@@ -704,7 +696,7 @@ fn ray_crossings_filtered(u: [DVec3; 3], cf: DVec3) -> Option<[i32; 2]> {
         if o.abs() <= err {
             return None;
         }
-        let s = sign_f64(o);
+        let s = sign(o);
         if s0 != 0 && s != s0 {
             return Some([0, 0]);
         }
@@ -718,7 +710,7 @@ fn ray_crossings_filtered(u: [DVec3; 3], cf: DVec3) -> Option<[i32; 2]> {
     if f.abs() <= err {
         return None;
     }
-    let crosses = sign_f64(f) == -nx;
+    let crosses = sign(f) == -nx;
     Some(if crosses { [nx as i32; 2] } else { [0, 0] })
 }
 
@@ -1194,7 +1186,7 @@ pub(super) fn collapse_rounded_edges(out: &mut Output, n_input: usize) {
         let common: Vec<u32> = nk.iter().copied().filter(|v| ng.contains(v)).collect();
         let opposite: Vec<u32> = shared
             .iter()
-            .map(|&i| third_u32(&out.polygons[i].ring, keep, gone))
+            .map(|&i| third(&out.polygons[i].ring, keep, gone))
             .collect();
         if common.len() != 2 || !opposite.iter().all(|v| common.contains(v)) {
             continue;
@@ -1230,45 +1222,59 @@ pub(super) fn collapse_rounded_edges(out: &mut Output, n_input: usize) {
 /// both new triangles come out wound as the old ones (Shewchuk's cure for
 /// caps), until no such triangle is left.
 pub(super) fn flip_rounded_caps(out: &mut Output, n_input: usize) {
-    let mut edge: FxHashMap<(u32, u32), usize> = FxHashMap::default();
-    for (i, p) in out.polygons.iter().enumerate() {
-        let n = p.ring.len();
-        for k in 0..n {
-            edge.insert((p.ring[k], p.ring[(k + 1) % n]), i);
-        }
-    }
     let pos = |v: u32, out: &Output| out.points[v as usize];
+    // A flat triangle with a made corner across its longest edge: that
+    // edge (u, v) and the corner w.
+    let cap = |ring: &[u32], out: &Output| -> Option<(u32, u32, u32)> {
+        if ring.len() != 3 || ring.iter().all(|&v| (v as usize) < n_input) {
+            return None;
+        }
+        let len = |k: usize| (pos(ring[(k + 1) % 3], out) - pos(ring[k], out)).length();
+        let k = (0..3).max_by(|&x, &y| len(x).total_cmp(&len(y)))?;
+        let (u, v, w) = (ring[k], ring[(k + 1) % 3], ring[(k + 2) % 3]);
+        let (pu, pv, pw) = (pos(u, out), pos(v, out), pos(w, out));
+        let scale = pu.abs().max(pv.abs()).max(pw.abs()).max_element();
+        let flat = (pv - pu).cross(pw - pu).length() <= 32.0 * f64::EPSILON * len(k) * scale;
+        (flat && w as usize >= n_input).then_some((u, v, w))
+    };
+    // The edge table only where some cap is (almost never: not on the
+    // general path's hot loop).
+    let mut edge: Option<FxHashMap<(u32, u32), usize>> = None;
     for _pass in 0..4 {
+        let caps: Vec<usize> = (0..out.polygons.len())
+            .filter(|&i| cap(&out.polygons[i].ring, out).is_some())
+            .collect();
+        if caps.is_empty() {
+            break;
+        }
+        let edge = edge.get_or_insert_with(|| {
+            let mut map = FxHashMap::default();
+            for (i, p) in out.polygons.iter().enumerate() {
+                let n = p.ring.len();
+                for k in 0..n {
+                    map.insert((p.ring[k], p.ring[(k + 1) % n]), i);
+                }
+            }
+            map
+        });
         let mut flipped = false;
-        for i in 0..out.polygons.len() {
-            if out.polygons[i].ring.len() != 3 {
+        for i in caps {
+            // (An earlier flip of this pass may have changed it.)
+            let Some((u, v, w)) = cap(&out.polygons[i].ring, out) else {
                 continue;
-            }
-            let r = out.polygons[i].ring.clone();
-            // (u, v) its longest edge, w the corner across.
-            let k = (0..3)
-                .max_by(|&x, &y| {
-                    let len = |k: usize| (pos(r[(k + 1) % 3], out) - pos(r[k], out)).length();
-                    len(x).total_cmp(&len(y))
-                })
-                .expect("three edges");
-            let (u, v, w) = (r[k], r[(k + 1) % 3], r[(k + 2) % 3]);
-            let (pu, pv, pw) = (pos(u, out), pos(v, out), pos(w, out));
-            let scale = pu.abs().max(pv.abs()).max(pw.abs()).max_element();
-            let long = (pv - pu).length();
-            let flat = (pv - pu).cross(pw - pu).length() <= 32.0 * f64::EPSILON * long * scale;
-            if !flat || (w as usize) < n_input {
-                continue;
-            }
+            };
             let Some(&j) = edge.get(&(v, u)) else {
                 continue;
             };
             let rj = out.polygons[j].ring.clone();
-            if rj.len() != 3 || edge.contains_key(&(w, third_u32(&rj, u, v))) {
+            if rj.len() != 3 {
                 continue;
             }
-            let x = third_u32(&rj, u, v);
-            let px = pos(x, out);
+            let x = third(&rj, u, v);
+            if edge.contains_key(&(w, x)) {
+                continue;
+            }
+            let (pu, pv, pw, px) = (pos(u, out), pos(v, out), pos(w, out), pos(x, out));
             let n = (pu - pv).cross(px - pv);
             let wound = |a: DVec3, b: DVec3, c: DVec3| (b - a).cross(c - a).dot(n) > 0.0;
             if !(wound(pu, px, pw) && wound(px, pv, pw)) {
@@ -1297,13 +1303,6 @@ pub(super) fn flip_rounded_caps(out: &mut Output, n_input: usize) {
             break;
         }
     }
-}
-
-fn third_u32(ring: &[u32], a: u32, b: u32) -> u32 {
-    *ring
-        .iter()
-        .find(|&&v| v != a && v != b)
-        .expect("a triangle")
 }
 
 /// One use of an edge: polygon, corner where the edge starts.

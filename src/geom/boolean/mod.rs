@@ -224,9 +224,7 @@ impl Prepared {
 /// The exact path alone, whatever the contacts (for tests that compare the
 /// two paths).
 pub fn boolean_exact(input: &Input, operation: Operation) -> Result<Output, BooleanError> {
-    let tris = triangulate(input)?;
-    Adjacency::new(input.points.len(), &tris).check_closed(&tris)?;
-    exact::boolean(input, &tris, operation)
+    exact::boolean(input, &prepare(input)?.tris, operation)
 }
 
 /// The general-position path: refuses degenerate contacts.
