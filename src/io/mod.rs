@@ -10,6 +10,9 @@
 //! | PLY (`.ply`) | ASCII, binary little/big endian: vertex, face, edge elements | binary little endian (default) or ASCII |
 //! | glTF (`.gltf`, `.glb`) | triangle and line primitives of the default scene, node transforms applied, coincident vertices merged | flat-shaded triangles + a line primitive |
 //!
+//! NURBS patch files (`.bpt`, OBJ free-form `surf`) are read into surfaces, not meshes: see
+//! [`patches`].
+//!
 //! Writers are deterministic: the same mesh always encodes to the same bytes (no dates,
 //! versions or hash-map order in any output). Text formats print floats in their shortest
 //! round-trip form (`-0` becomes `0`). Non-finite values are rejected, never written.
@@ -22,6 +25,7 @@
 
 pub mod gltf;
 pub mod obj;
+pub mod patches;
 pub mod ply;
 pub mod stl;
 
@@ -56,6 +60,21 @@ pub enum IoError {
         line: usize,
         message: String,
     },
+    /// A text file has an error at a given line and column (both 1-based; the column counts
+    /// bytes).
+    #[error("{}:{line}:{column}: {message}", .path.display())]
+    Located {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    /// The file extension names no supported NURBS patch format.
+    #[error(
+        "{}: unknown patch format (expected a .bpt or .obj extension)",
+        .path.display()
+    )]
+    UnknownPatchFormat { path: PathBuf },
     /// A face or line refers to a vertex that does not exist.
     #[error(
         "{}: {}{element} {index} refers to vertex {vertex} but only {count} exist",
