@@ -87,7 +87,7 @@ fn teapot_obj_has_the_same_nets_as_the_bpt() {
         assert_eq!(sb.knots_u(), so.knots_u());
         assert_eq!(sb.knots_v(), so.knots_v());
     }
-    // Each surf starts 7 lines (surf + continuation, parm × 2, end) after the previous one.
+    // Each surf starts 5 lines (surf + continuation, parm × 2, end) after the previous one.
     assert!(
         o.lines.windows(2).all(|w| w[1] == w[0] + 5),
         "{:?}",
