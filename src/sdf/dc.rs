@@ -46,7 +46,9 @@ use crate::sdf::grid::{
     lidx, sample_block, BlockSamples, Field, FieldEval, Grid, MeshOptions, SampleScratch, BLOCK, BP,
 };
 use crate::sdf::mesher::{edge_t, max_abs_at, refine_roots, timed, MeshOutput, MeshStats, Timings};
-use crate::sdf::table::{classify_cell, corner_offset, edge_info, other_axes, table, Entry};
+use crate::sdf::table::{
+    classify_cell, corner_offset, edge_info, inside, other_axes, table, Entry,
+};
 
 /// Regula-falsi steps on every Hermite point.
 const HERMITE_STEPS: u32 = 8;
@@ -283,7 +285,7 @@ fn phase1(
                             1 => lidx(x, y + 1, z),
                             _ => lidx(x, y, z + 1),
                         };
-                        if valid[q] && (v[p] < 0.0) != (v[q] < 0.0) {
+                        if valid[q] && inside(v[p]) != inside(v[q]) {
                             out.edge_keys.push(grid.edge_key(g_of(x, y, z), axis));
                             out.edge_pos.push(crossing_pos([x, y, z], axis));
                         }

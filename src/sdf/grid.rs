@@ -23,7 +23,8 @@
 //! samples of a live block are only those of its live sub-blocks, so the
 //! work follows the surface: about (area / h²) × a band of a few cells.
 //!
-//! Samples on the grid's outer border are clamped to ≥ 0 (outside), so the
+//! Samples on the grid's outer border are clamped to > 0 (outside: the
+//! meshers count f ≤ 0 as inside, see [`crate::sdf::mc`]), so the
 //! output is closed even when an explicit domain cuts the solid; a block on
 //! the border that is entirely inside is therefore never skipped.
 

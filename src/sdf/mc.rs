@@ -1,7 +1,16 @@
 //! Sparse, parallel marching cubes (thesis §2.2; spec §1.8.2) with the
 //! face-consistent table of [`crate::sdf::table`].
 //!
-//! Inside iff f < 0: a sample equal to 0 is outside. One vertex per crossed
+//! Inside iff f ≤ 0 ([`crate::sdf::table::inside`]): a sample exactly 0
+//! (+0.0 or −0.0) is **inside**, as in scikit-image's `marching_cubes`
+//! (whose case bit is set only for `v − level > 0`). The same predicate
+//! gives the cell case, the ambiguous-face decisions and the crossed grid
+//! edges (one end inside, the other not), so they always agree. On the
+//! `lattice` grid, where a surface through a lattice plane puts many samples
+//! exactly on 0, the surface therefore runs through those samples (moved by
+//! the margin τ·h below towards the outside end), not one cell further in:
+//! the areas match scikit-image's on the same samples (tested in
+//! `sdf::tests::meshers`). One vertex per crossed
 //! grid edge, created by the block that owns the edge's lower sample and
 //! referenced by id from the (up to four) cells around it, so the mesh is
 //! welded by construction. The vertex parameter is computed from the lower
@@ -24,7 +33,7 @@ use crate::sdf::grid::{
     VertexPlacement, BLOCK, BP,
 };
 use crate::sdf::mesher::{edge_t, max_abs_at, refine_roots, timed, MeshOutput, MeshStats, Timings};
-use crate::sdf::table::{classify_cell, corner_offset, edge_info, table};
+use crate::sdf::table::{classify_cell, corner_offset, edge_info, inside, table};
 
 const FOREIGN: u32 = 1 << 31;
 const CENTRE: u32 = 1 << 30;
@@ -229,7 +238,7 @@ fn block(
                         continue;
                     }
                     let f1 = v[q];
-                    if (f0 < 0.0) != (f1 < 0.0) {
+                    if inside(f0) != inside(f1) {
                         let slot = p * 3 + axis;
                         sc.map[slot] = crossing.len() as u32;
                         sc.touched.push(slot as u32);

@@ -16,6 +16,7 @@ use crate::geom::sink::{Begin, MeshSink, SinkError};
 use crate::sdf::aabb::Aabb;
 use crate::sdf::error::{Result, SdfError};
 use crate::sdf::grid::{live_blocks, Field, Grid, MeshOptions, Mesher};
+use crate::sdf::table::inside;
 
 /// A neutral indexed triangle mesh with its statistics.
 #[derive(Debug, Clone, PartialEq)]
@@ -176,9 +177,12 @@ pub fn timed<T>(on: bool, acc: &mut Duration, f: impl FnOnce() -> T) -> T {
 /// moved by at most τ·h along its edge, far below the interpolation error.
 pub const EDGE_MARGIN: f64 = 1.0 / 1024.0;
 
-/// Position of the crossing on a grid edge with end values f0 < 0 ≤ f1 (or
-/// the reverse): parameter from the lower end, kept inside [τ, 1 − τ]
-/// ([`EDGE_MARGIN`]).
+/// Position of the crossing on a grid edge with end values f0 ≤ 0 < f1 (or
+/// the reverse; zero is inside, [`crate::sdf::table::inside`]): parameter
+/// from the lower end, kept inside [τ, 1 − τ] ([`EDGE_MARGIN`]). An end
+/// exactly 0 gives t = 0 or 1 (the vertex at that sample, as scikit-image
+/// puts it), moved τ into the edge; f0 − f1 is never 0 on a crossed edge,
+/// and a NaN (two infinities) gives the midpoint.
 #[inline]
 pub fn edge_t(f0: f64, f1: f64) -> f64 {
     const TAU: f64 = EDGE_MARGIN;
@@ -198,7 +202,7 @@ pub fn region_of(ps: &[[f64; 3]]) -> Aabb {
 /// Bracketed root refinement on segments a → b (Illinois regula falsi,
 /// bisecting after three retentions of one side): `ts` holds the start
 /// parameters and receives the refined ones. `fa`, `fb` are the end values
-/// (opposite signs in the f < 0 sense). Returns the evaluations spent.
+/// (on opposite sides in the f ≤ 0 sense). Returns the evaluations spent.
 #[allow(clippy::too_many_arguments)]
 pub fn refine_roots(
     ev: &mut dyn crate::sdf::grid::FieldEval,
@@ -231,7 +235,7 @@ pub fn refine_roots(
             if f.is_nan() {
                 continue;
             }
-            if (f < 0.0) == (flo[i] < 0.0) {
+            if inside(f) == inside(flo[i]) {
                 lo[i] = ts[i];
                 flo[i] = f;
                 if side[i] < 0 {

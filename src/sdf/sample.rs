@@ -12,6 +12,12 @@ use crate::sdf::grid::{may_hold_surface, Field, FieldEval, Grid, BLOCK, BP, SUB}
 /// Cells per child edge (the finest culling level).
 pub const CHILD: usize = 2;
 
+/// Value given to a border sample that is inside (f ≤ 0): the smallest
+/// positive normal f64, outside under the meshers' rule (inside iff f ≤ 0,
+/// [`crate::sdf::table::inside`]; a clamp to 0 would leave it inside and
+/// the output open). Its crossings sit at the margin next to the border.
+pub const BORDER_OUTSIDE: f64 = f64::MIN_POSITIVE;
+
 /// Samples of one block: only the points of live children are valid.
 pub struct BlockSamples {
     /// Block index per axis.
@@ -21,7 +27,8 @@ pub struct BlockSamples {
     /// Cells per axis in this block (≤ BLOCK at the grid's far end).
     pub nc: [usize; 3],
     /// Values at local points (lx + BP·(ly + BP·lz)); sanitised: NaN → +MAX,
-    /// border samples clamped to ≥ 0. Only `valid` entries are meaningful.
+    /// border samples clamped to > 0 ([`BORDER_OUTSIDE`]). Only `valid`
+    /// entries are meaningful.
     pub v: Vec<f64>,
     /// Which local points were evaluated.
     pub valid: Vec<bool>,
@@ -329,8 +336,8 @@ pub fn sample_block(
         if f.is_nan() {
             f = f64::MAX;
         }
-        if s.border[k] && f < 0.0 {
-            f = 0.0;
+        if s.border[k] && f <= 0.0 {
+            f = BORDER_OUTSIDE;
         }
         out.v[i as usize] = f;
     }

@@ -141,16 +141,31 @@ pub fn table() -> &'static Table {
     T.get_or_init(build)
 }
 
+/// The meshers' one sign rule: a sample is inside iff f ≤ 0, so an exact
+/// zero (+0.0 or −0.0) is inside, as in scikit-image's `marching_cubes`
+/// (its case bit is set for `v − level > 0` only). Every decision that
+/// reads a sign goes through this predicate (the cell case, which grid
+/// edges cross, the ambiguous-face decider, root bracketing), so the case
+/// index, the crossed edges and the vertices agree. NaN never reaches it
+/// (samples are sanitised to +MAX, i.e. outside).
+#[inline]
+pub fn inside(f: f64) -> bool {
+    f <= 0.0
+}
+
 /// Decision of one ambiguous face from its corner values in cyclic order
-/// (a, b, c, d): are the inside (negative) corners joined across the face?
+/// (a, b, c, d): are the inside ([`inside`]: f ≤ 0) corners joined across
+/// the face? Iff the bilinear saddle value is ≤ 0 (a saddle exactly on the
+/// level set counts as inside, like a sample): the denominator of the
+/// saddle value is negative, so that is `inside product ≥ outside product`.
 /// Depends only on the four values and is symmetric under the face's
 /// symmetries (products and the comparison are), so both cubes agree.
 #[inline]
 pub fn face_joins_inside(a: f64, b: f64, c: f64, d: f64) -> bool {
-    if a < 0.0 {
-        a * c > b * d
+    if inside(a) {
+        a * c >= b * d
     } else {
-        b * d > a * c
+        b * d >= a * c
     }
 }
 
@@ -164,7 +179,7 @@ pub fn classify_cell(tab: &Table, mut value_at: impl FnMut([usize; 3]) -> f64) -
     let mut case = 0usize;
     for (c, val) in vals.iter_mut().enumerate() {
         *val = value_at(corner_offset(c));
-        if *val < 0.0 {
+        if inside(*val) {
             case |= 1 << c;
         }
     }

@@ -168,3 +168,26 @@ fn shared_faces_agree() {
         }
     }
 }
+
+/// The sign rule: f ≤ 0 is inside (either zero), anything above 0 or NaN is
+/// not; a cell of zeros is all inside, and a saddle exactly on the level set
+/// joins the inside corners.
+#[test]
+fn zero_counts_as_inside() {
+    use crate::sdf::table::{classify_cell, face_joins_inside, inside};
+    assert!(inside(0.0) && inside(-0.0) && inside(-1e-300));
+    assert!(!inside(f64::MIN_POSITIVE) && !inside(5e-324) && !inside(f64::NAN));
+    let tab = table();
+    assert_eq!(classify_cell(tab, |_| 0.0).0, 255);
+    assert_eq!(classify_cell(tab, |_| -0.0).0, 255);
+    assert_eq!(
+        classify_cell(tab, |o| if o == [0, 0, 0] { 0.0 } else { 1.0 }).0,
+        1
+    );
+    // a·c = b·d: saddle value 0, inside corners (a, c) joined.
+    assert!(face_joins_inside(-1.0, 1.0, -1.0, 1.0));
+    assert!(face_joins_inside(1.0, -1.0, 1.0, -1.0));
+    // An inside zero: the saddle is outside, not joined.
+    assert!(!face_joins_inside(0.0, 1.0, -1.0, 1.0));
+    assert!(!face_joins_inside(1.0, -0.0, 1.0, -1.0));
+}
