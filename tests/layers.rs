@@ -113,7 +113,7 @@ fn modules_use_only_the_layers_below_them() {
         ("nurbs", &["geom"]),
         ("kernel", &["geom"]),
         ("sdf", &["geom"]),
-        ("io", &["geom"]),
+        ("io", &["geom", "nurbs"]),
         ("preview", &["geom"]),
         ("rules", &["geom", "kernel", "sdf", "nurbs"]),
         ("grammar", &["geom", "kernel", "sdf", "nurbs", "rules"]),

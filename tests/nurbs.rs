@@ -519,3 +519,211 @@ fn bad_curves_and_sweeps_are_located_errors() {
         common::assert_located_error(dir.path(), text, location, words);
     }
 }
+
+// ---------------------------------------------------------------- patch sets (issue 37)
+
+/// Boundary loops of an indexed mesh: components of its boundary edges.
+fn boundary_loops(mesh: &graftal::io::IndexedMesh) -> usize {
+    let mut count: std::collections::BTreeMap<[u32; 2], u32> = Default::default();
+    for k in 0..mesh.face_starts.len() - 1 {
+        let f = &mesh.face_indices[mesh.face_starts[k] as usize..mesh.face_starts[k + 1] as usize];
+        for i in 0..f.len() {
+            let (a, b) = (f[i], f[(i + 1) % f.len()]);
+            *count.entry([a.min(b), a.max(b)]).or_default() += 1;
+        }
+    }
+    let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            x = p[x as usize];
+        }
+        x
+    }
+    let mut on = std::collections::BTreeSet::new();
+    for (e, n) in &count {
+        if *n == 1 {
+            on.insert(e[0]);
+            on.insert(e[1]);
+            let (a, b) = (find(&mut parent, e[0]), find(&mut parent, e[1]));
+            parent[a.max(b) as usize] = a.min(b);
+        }
+    }
+    on.iter().filter(|&&v| find(&mut parent, v) == v).count()
+}
+
+/// Pairs of distinct vertices at bit-identical positions, with the position.
+fn coincident_vertices(mesh: &graftal::io::IndexedMesh) -> Vec<[f64; 3]> {
+    let mut keys: Vec<([u64; 3], [f64; 3])> = mesh
+        .positions
+        .iter()
+        .map(|p| (p.map(|x| (x + 0.0).to_bits()), *p))
+        .collect();
+    keys.sort_by_key(|k| k.0);
+    keys.windows(2)
+        .filter(|w| w[0].0 == w[1].0)
+        .map(|w| w[0].1)
+        .collect()
+}
+
+/// The teapot in each mode, from the example's patch file copied beside a rule file.
+fn teapot(dir: &Path, file: &str, step: &str) -> (Value, graftal::io::IndexedMesh) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (from, to) in [
+        ("rules/teapot.bpt", "teapot.bpt"),
+        ("tests/fixtures/teapot.obj", "teapot.obj"),
+    ] {
+        std::fs::copy(root.join(from), dir.join(to)).unwrap();
+    }
+    let text = format!("[nurbs.teapot]\npatches = \"{file}\"\n\n[start]\nnurbs = {{ surface = \"teapot\", {step} }}\n");
+    std::fs::write(dir.join("t.toml"), text).unwrap();
+    let o = graftal_in(dir, &["run", "t.toml", "-o", "t.obj", "--stats", "-"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    (stats(&o), common::read_mesh(&dir.join("t.obj")))
+}
+
+#[test]
+fn the_teapot_is_one_mesh_without_cracks_in_every_mode() {
+    let dir = temp_dir();
+    for step in [
+        "mode = \"uniform\", cells = [8, 8]",
+        "mode = \"uniform\", cells = [5, 3]",
+        "mode = \"interpatch\", tolerance = 0.001",
+        "mode = \"adaptive\", tolerance = 0.001",
+    ] {
+        let (s, mesh) = teapot(dir.path(), "teapot.bpt", step);
+        let m = &s["mesh"];
+        // Body with rim and bottom, lid, handle, spout: each a manifold sheet.
+        assert_eq!(m["components"], 4, "{step}: {m}");
+        assert_eq!(m["manifold"], true, "{step}");
+        assert_eq!(m["non_manifold_edges"], 0, "{step}");
+        assert_eq!(m["non_manifold_vertices"], 0, "{step}");
+        assert_eq!(m["consistently_oriented"], true, "{step}");
+        // Open only where Newell's data is: rim, lid edge, both ends of handle and spout
+        // (per-patch meshing gave 10 loops and 28 crack vertices at 8 × 8).
+        assert_eq!(boundary_loops(&mesh), 6, "{step}");
+        // No crack vertex; the one coincident pair is the handle's end touching a corner of
+        // the body, where no border is shared (welding it would make a vertex of two fans).
+        assert_eq!(coincident_vertices(&mesh), vec![[-2.0, 0.0, 0.9]], "{step}");
+        assert_eq!(s["steps"][0]["surface"]["patches"], 32);
+    }
+    // Uniform 8 × 8: every patch a full grid, the 64 triangles at the 8 pole patches dropped.
+    let (s, _) = teapot(
+        dir.path(),
+        "teapot.bpt",
+        "mode = \"uniform\", cells = [8, 8]",
+    );
+    assert_eq!(s["mesh"]["triangles"], 32 * 128 - 8 * 8);
+}
+
+#[test]
+fn the_teapot_reads_the_same_from_obj_free_form_and_bpt() {
+    let (a, b) = (temp_dir(), temp_dir());
+    let step = "mode = \"adaptive\", tolerance = 0.002";
+    teapot(a.path(), "teapot.bpt", step);
+    teapot(b.path(), "teapot.obj", step);
+    assert_eq!(
+        std::fs::read(a.path().join("t.obj")).unwrap(),
+        std::fs::read(b.path().join("t.obj")).unwrap()
+    );
+}
+
+#[test]
+fn inter_patch_stays_close_to_adaptive_on_the_teapot() {
+    let dir = temp_dir();
+    let count = |step: &str| {
+        let (s, _) = teapot(dir.path(), "teapot.bpt", step);
+        let surface = &s["steps"][0]["surface"];
+        assert!(surface["max_deviation"].as_f64().unwrap() <= 1e-3 * (1.0 + 1e-9));
+        surface["triangles"].as_f64().unwrap()
+    };
+    let inter = count("mode = \"interpatch\", tolerance = 0.001");
+    let adaptive = count("mode = \"adaptive\", tolerance = 0.001");
+    assert!(inter / adaptive <= 1.5, "{inter} / {adaptive}");
+}
+
+#[test]
+fn a_named_patch_set_welds_a_reversed_border() {
+    // Two bicubic patches; b's side v0 is a's side u1 run backwards, with heights whose
+    // evaluation at t and 1 − t differ in the last bit.
+    let bump = [0.0, 0.45, 0.05, 0.3];
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for i in 0..4 {
+        for j in 0..4 {
+            let z = if i == 3 {
+                bump[j]
+            } else {
+                0.1 * (i * j) as f64
+            };
+            a.push(format!("[{i}, {j}, {z}]"));
+            let z = if j == 0 {
+                bump[3 - i]
+            } else {
+                0.2 * j as f64 * (i as f64 - 1.5)
+            };
+            b.push(format!("[{}, {}, {z}]", 3 + j, 3 - i as i32));
+        }
+    }
+    let text = format!(
+        "[nurbs.a]\ndegree = 3\nsize = [4, 4]\npoints = [{}]\n\n[nurbs.b]\ndegree = 3\nsize = [4, 4]\npoints = [{}]\n\n[nurbs.pair]\npatches = [\"a\", \"b\"]\n\n[start]\nnurbs = {{ surface = \"pair\", mode = \"uniform\", cells = [8, 8] }}\n",
+        a.join(", "),
+        b.join(", ")
+    );
+    let dir = temp_dir();
+    std::fs::write(dir.path().join("p.toml"), text).unwrap();
+    let o = graftal_in(
+        dir.path(),
+        &["run", "p.toml", "-o", "p.obj", "--stats", "-"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let s = stats(&o);
+    let mesh = common::read_mesh(&dir.path().join("p.obj"));
+    assert_eq!(s["mesh"]["components"], 1);
+    assert_eq!(s["mesh"]["manifold"], true);
+    // One outline: 6 sides of 8 segments (each patch alone: 4 × 8).
+    assert_eq!(s["mesh"]["boundary_edges"], 48);
+    assert_eq!(boundary_loops(&mesh), 1);
+    assert!(coincident_vertices(&mesh).is_empty());
+}
+
+#[test]
+fn patch_set_errors_are_located() {
+    let dir = temp_dir();
+    let two = "[nurbs.a]\ndegree = 1\nsize = [2, 2]\npoints = [[0, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0]]\n\n";
+    for (text, location, words) in [
+        (
+            format!("{two}[nurbs.s]\npatches = [\"a\", \"nope\"]\n\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:7:17",
+            "no nurbs surface named `nope`",
+        ),
+        (
+            format!("{two}[nurbs.s]\npatches = [\"a\"]\njoins = [[\"a.u9\", \"a.u0\"]]\n\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:8:11",
+            "unknown side `u9`",
+        ),
+        (
+            format!("{two}[nurbs.s]\npatches = [\"a\"]\ndegree = 3\n\n[start]\nnurbs = {{ surface = \"s\" }}\n"),
+            "rules.toml:8:10",
+            "a patch set takes `patches` and `joins` only",
+        ),
+        (
+            "[nurbs.s]\npatches = \"missing.bpt\"\n\n[start]\nnurbs = { surface = \"s\" }\n".to_owned(),
+            "rules.toml:2:11",
+            "cannot import",
+        ),
+    ] {
+        common::assert_located_error(dir.path(), &text, location, words);
+    }
+    // A malformed patch file: its own file:line:column, exit 2, no output.
+    let bad = format!("1\n3 3\n0 0 0\n1 0 x\n{}", "0 0 0\n".repeat(14));
+    std::fs::write(dir.path().join("bad.bpt"), bad).unwrap();
+    std::fs::write(
+        dir.path().join("r.toml"),
+        "[nurbs.s]\npatches = \"bad.bpt\"\n\n[start]\nnurbs = { surface = \"s\" }\n",
+    )
+    .unwrap();
+    let o = graftal_in(dir.path(), &["run", "r.toml", "-o", "out.obj"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("bad.bpt:4:5"), "{err}");
+    assert!(!dir.path().join("out.obj").exists());
+}

@@ -9,6 +9,7 @@
 //! each file's decoded mesh and, on first use, its [`MeshField`] for each
 //! sign mode, shared by every variant (and thread) of the batch.
 
+use crate::nurbs::surface::NurbsSurface;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -37,6 +38,8 @@ use crate::sdf::{
 #[derive(Debug)]
 pub struct Input {
     pub mesh: Arc<IndexedMesh>,
+    /// A patch file's surfaces (`[nurbs.NAME] patches = "…"`); the mesh is then empty.
+    pub patches: Option<Arc<[NurbsSurface]>>,
     /// By sign mode (auto, pseudonormal, winding) × up axis (z, y).
     fields: [OnceLock<Result<Arc<MeshField>, String>>; 6],
 }
@@ -45,6 +48,16 @@ impl Input {
     pub fn new(mesh: Arc<IndexedMesh>) -> Input {
         Input {
             mesh,
+            patches: None,
+            fields: Default::default(),
+        }
+    }
+
+    /// A patch file's surfaces.
+    pub fn patches(surfaces: Vec<NurbsSurface>) -> Input {
+        Input {
+            mesh: Arc::new(IndexedMesh::default()),
+            patches: Some(Arc::from(surfaces)),
             fields: Default::default(),
         }
     }

@@ -355,6 +355,7 @@ pub(super) fn apply(
     let surface_ctx = || surfaces::SurfaceContext {
         slots: ctx.slots,
         surfaces: ctx.nurbs,
+        inputs: ctx.inputs,
         budget: ctx.budget,
         uses_graph: ctx.uses_graph,
     };

@@ -17,7 +17,9 @@ use crate::kernel::{Domain, Mesh};
 use crate::nurbs::error::Dir;
 use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
 use crate::nurbs::surface::NurbsSurface;
-use crate::nurbs::tess::{tessellate, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation};
+use crate::nurbs::tess::{
+    tessellate, tessellate_set, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation,
+};
 use crate::nurbs::tess::{Combine, EdgeTest};
 use crate::rules::nurbs_def::SurfaceDef;
 use crate::rules::op_args::{self, EdgeTestName, PnPattern, TessMode, TessellateArgs};
@@ -27,6 +29,8 @@ use crate::rules::program::Scalar;
 pub(super) struct SurfaceContext<'a> {
     pub slots: &'a [f64],
     pub surfaces: &'a [SurfaceDef],
+    /// The files the program read (patch files by resource index).
+    pub inputs: &'a [super::fields::Input],
     /// Primitives the model may still grow by.
     pub budget: u64,
     /// The program uses G³ commands (a new model gets the graph layers).
@@ -79,8 +83,14 @@ fn tessellate_call(
     copies: usize,
 ) -> Result<(Tessellation, SurfaceStats), StepError> {
     let def = &ctx.surfaces[args.surface];
-    let surface = def
-        .build(ctx.surfaces, ctx.slots)
+    let file_patches = |resource: usize| {
+        ctx.inputs
+            .get(resource)
+            .and_then(|input| input.patches.as_ref())
+            .map(|p| p.to_vec())
+    };
+    let set = def
+        .build_set(ctx.surfaces, ctx.slots, &file_patches)
         .map_err(|e| StepError::Surface {
             surface: def.name.clone(),
             message: format!("{}: {}", e.key, e.message),
@@ -148,7 +158,12 @@ fn tessellate_call(
     };
     // Every copy counts against the budget.
     let cap = triangle_cap(ctx.budget / copies.max(1) as u64);
-    let t = tessellate(&surface, &mode, cap).map_err(|e| match e {
+    // One surface keeps its own path (seams and poles within it); a set is welded across.
+    let t = match set.surfaces.as_slice() {
+        [surface] if !def.is_set() => tessellate(surface, &mode, cap),
+        _ => tessellate_set(&set, &mode, cap),
+    };
+    let t = t.map_err(|e| match e {
         TessError::TriangleLimit { needed, .. } => StepError::FieldTooLarge {
             what: if copies > 1 {
                 format!("{copies} copies of `{}`", def.name)
@@ -171,10 +186,16 @@ fn tessellate_call(
         max_deviation: t.stats.max_deviation,
         max_level: t.stats.max_level,
         rounds: t.stats.rounds,
-        patches: [Dir::U, Dir::V]
+        patches: set
+            .surfaces
             .iter()
-            .map(|&d| surface.breakpoints(d).len().saturating_sub(1))
-            .product(),
+            .map(|surface| {
+                [Dir::U, Dir::V]
+                    .iter()
+                    .map(|&d| surface.breakpoints(d).len().saturating_sub(1))
+                    .product::<usize>()
+            })
+            .sum(),
         pn_level: None,
     };
     Ok((t, stats))

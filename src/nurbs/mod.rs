@@ -13,6 +13,8 @@
 //! - [`sweep`]: surfaces of revolution and sweeps of a profile curve along a path.
 //! - [`tess`]: uniform, inter-patch adaptive and fully adaptive tessellation (thesis ch. 2,
 //!   decisions D7–D8), with a triangle cap checked before allocating.
+//! - [`patchset`]: [`patchset::PatchSet`], surfaces sharing borders (found exactly or
+//!   declared), meshed as one conforming mesh by [`tess::tessellate_set`].
 //! - [`pn`]: PN triangles with the uniform or OpenGL ring pattern (thesis ch. 3–4, D10).
 //! - [`mesh`]: the neutral [`mesh::TriMesh`] output and its edge census.
 //! - [`error`]: [`error::NurbsError`] and the rule-file [`error::Field`] names.
@@ -54,6 +56,7 @@ pub mod error;
 pub mod hash;
 pub mod knots;
 pub mod mesh;
+pub mod patchset;
 pub mod pn;
 pub mod surface;
 pub mod sweep;

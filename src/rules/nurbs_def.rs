@@ -7,6 +7,7 @@
 use crate::nurbs::curve::NurbsCurve;
 use crate::nurbs::error::{Field, NurbsError};
 use crate::nurbs::knots::clamped_uniform;
+use crate::nurbs::patchset::{BorderRef, Join, PatchSet, Side};
 use crate::nurbs::surface::NurbsSurface;
 pub use crate::nurbs::sweep::Orient;
 use crate::nurbs::sweep::{revolve, sweep};
@@ -60,6 +61,12 @@ pub enum Points {
     /// then the profile's point count, `degree` its degree, `weights` its
     /// weights.
     Revolve(Profile),
+    /// A patch set (`patches`): many surfaces meshed as one, shared
+    /// borders welded (issue 37).
+    Set {
+        patches: PatchSource,
+        joins: Vec<JoinDef>,
+    },
     /// A named curve (`profile`, index into the program's tables) swept
     /// along another (`path`).
     Sweep {
@@ -70,6 +77,22 @@ pub enum Points {
         /// path (model units; `Follow` only).
         tolerance: Scalar,
     },
+}
+
+/// Where a patch set's surfaces come from.
+#[derive(Debug, Clone)]
+pub enum PatchSource {
+    /// A patch file (index into the program's resources): `.bpt` or OBJ free-form.
+    File(usize),
+    /// `[nurbs.NAME]` surfaces (indices into the program's tables).
+    Named(Vec<usize>),
+}
+
+/// A declared shared border: (patch index within the set, side) twice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JoinDef {
+    pub a: (usize, Side),
+    pub b: (usize, Side),
 }
 
 /// The profile of a surface of revolution.
@@ -169,7 +192,56 @@ impl SurfaceDef {
                     .map_err(|e| SurfaceError::new("path", e.to_string()))
             }
             Points::Generator(_) | Points::List(_) => self.net(slots),
+            Points::Set { .. } => Err(SurfaceError::new(
+                "patches",
+                format!("`{}` is a patch set, not one surface", self.name),
+            )),
         }
+    }
+
+    /// Whether this table is a patch set.
+    pub fn is_set(&self) -> bool {
+        matches!(self.points, Points::Set { .. })
+    }
+
+    /// The patch set with the parameters at `slots` (a single surface is a set of one);
+    /// `file_patches` gives the surfaces a patch file holds, by resource index.
+    pub fn build_set(
+        &self,
+        defs: &[SurfaceDef],
+        slots: &[f64],
+        file_patches: &dyn Fn(usize) -> Option<Vec<NurbsSurface>>,
+    ) -> Result<PatchSet, SurfaceError> {
+        let Points::Set { patches, joins } = &self.points else {
+            return Ok(PatchSet::new(vec![self.build(defs, slots)?]));
+        };
+        let surfaces = match patches {
+            PatchSource::File(resource) => file_patches(*resource).ok_or_else(|| {
+                SurfaceError::new("patches", "the patch file was not read before the run")
+            })?,
+            PatchSource::Named(list) => list
+                .iter()
+                .map(|&k| {
+                    defs[k].build(defs, slots).map_err(|e| {
+                        SurfaceError::new("patches", format!("`{}`: {}", defs[k].name, e.message))
+                    })
+                })
+                .collect::<Result<_, _>>()?,
+        };
+        let joins = joins
+            .iter()
+            .map(|j| Join {
+                a: BorderRef {
+                    surface: j.a.0,
+                    side: j.a.1,
+                },
+                b: BorderRef {
+                    surface: j.b.0,
+                    side: j.b.1,
+                },
+            })
+            .collect();
+        Ok(PatchSet { surfaces, joins })
     }
 
     /// A curve table's curve with the parameters at `slots`.

@@ -138,6 +138,17 @@ pub struct Resource {
     pub written: String,
     /// `file:line:column` of the path, for errors about the file.
     pub location: String,
+    /// What the file holds.
+    pub kind: ResourceKind,
+}
+
+/// How a resource file is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResourceKind {
+    /// A mesh (`import`, `sdf` meshes): format by extension.
+    Mesh,
+    /// NURBS patches (`[nurbs.NAME] patches = "…"`): `.bpt` or OBJ free-form.
+    Patches,
 }
 
 /// What happens when a product of a command under `policy = "intersect"`

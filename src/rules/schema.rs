@@ -372,7 +372,14 @@ pub fn schema() -> Value {
                     "description": "a curve's knots (\"clamped_uniform\")" },
                 "path": { "type": "string", "minLength": 1, "description": "the curve a named profile is swept along" },
                 "orient": { "enum": ["follow", "fixed"], "description": "a sweep's profile turns with the path (follow) or is only translated (fixed)" },
-                "path_tolerance": describe(r("value"), "how far a follow sweep may stray from a true rotation-minimizing sweep (0.001)")
+                "path_tolerance": describe(r("value"), "how far a follow sweep may stray from a true rotation-minimizing sweep (0.001)"),
+                "patches": { "anyOf": [
+                    { "type": "string", "minLength": 1 },
+                    { "type": "array", "items": { "type": "string", "minLength": 1 }, "minItems": 1 } ],
+                    "description": "a patch set: a patch file (.bpt or OBJ free-form surfaces) beside the rule file, or the names of [nurbs.NAME] surfaces; shared borders are found and meshed without cracks" },
+                "joins": { "type": "array",
+                    "items": { "type": "array", "items": { "type": "string", "pattern": "^.+\\.(u0|u1|v0|v1)$" }, "minItems": 2, "maxItems": 2 },
+                    "description": "a patch set's borders declared shared whose control points only nearly agree: pairs [\"PATCH.SIDE\", \"PATCH.SIDE\"] (PATCH a listed name or a file's patch number from 0; SIDE u0, u1, v0, v1)" }
             }
         }),
     );

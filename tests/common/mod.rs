@@ -51,7 +51,16 @@ pub fn read_mesh(path: &Path) -> graftal::io::IndexedMesh {
 pub fn inputs(p: &Program) -> std::sync::Arc<[graftal::grammar::Input]> {
     p.resources
         .iter()
-        .map(|r| graftal::grammar::Input::new(std::sync::Arc::new(read_mesh(&r.path))))
+        .map(|r| match r.kind {
+            graftal::rules::program::ResourceKind::Mesh => {
+                graftal::grammar::Input::new(std::sync::Arc::new(read_mesh(&r.path)))
+            }
+            graftal::rules::program::ResourceKind::Patches => {
+                let bytes = std::fs::read(&r.path).unwrap();
+                let file = graftal::io::patches::decode_patches(&bytes, &r.path).unwrap();
+                graftal::grammar::Input::patches(file.surfaces)
+            }
+        })
         .collect()
 }
 

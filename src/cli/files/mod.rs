@@ -36,6 +36,7 @@ use crate::grammar::Input;
 use crate::io::{self as meshio, IndexedMesh, MeshFormat};
 use crate::rules::compile::source_from_bytes;
 use crate::rules::diagnostic::SourceFile;
+use crate::rules::program::ResourceKind;
 use crate::rules::{compile_source, Override, Program, RuleError};
 
 /// Largest rule file read: rule files are hand-written text.
@@ -250,9 +251,18 @@ pub fn load_inputs(program: &Program, policy: InputPolicy) -> Result<Inputs, Fai
                 "larger than the limit of {MAX_MESH_BYTES} bytes for a mesh file"
             )));
         }
-        let mesh = decode_mesh(&resource.path, &bytes, policy).map_err(fail)?;
+        let input = match resource.kind {
+            ResourceKind::Mesh => Input::new(Arc::new(
+                decode_mesh(&resource.path, &bytes, policy).map_err(fail)?,
+            )),
+            ResourceKind::Patches => Input::patches(
+                crate::io::patches::decode_patches(&bytes, &resource.path)
+                    .map_err(|e| fail(e.to_string()))?
+                    .surfaces,
+            ),
+        };
         hashes.push((resource.written.clone(), hex(&Sha256::digest(&bytes))));
-        meshes.push(Input::new(Arc::new(mesh)));
+        meshes.push(input);
     }
     Ok(Inputs {
         meshes: Arc::from(meshes),

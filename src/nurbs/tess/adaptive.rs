@@ -25,6 +25,7 @@ use super::super::hash::{edge_ends, edge_key, FxHashMap};
 use super::super::mesh::TriMesh;
 use super::super::surface::NurbsSurface;
 use super::domain::{sample, ParamDomain, Sample};
+use super::interpatch::BorderRule;
 use super::{check_positive, interpatch, uniform, Diagonal, TessError, TessStats, Tessellation};
 
 /// One edge test of thesis §2.2 (spec §2.6.3). Each answers "subdivide this edge?". N are unit
@@ -129,7 +130,7 @@ impl AdaptiveOptions {
         }
     }
 
-    fn validate(&self) -> Result<(), TessError> {
+    pub(crate) fn validate(&self) -> Result<(), TessError> {
         let nonneg = |name: &'static str, v: f64| {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
@@ -320,6 +321,32 @@ pub(crate) fn adaptive(
             interpatch::interpatch(surface, tolerance, max_triangles)?
         }
     };
+    refine(
+        surface,
+        options,
+        initial,
+        &Default::default(),
+        None,
+        max_triangles,
+    )
+}
+
+/// Border parameters a refinement must reach, per side ([`crate::nurbs::patchset::Side`]
+/// order), sorted: a patch set's neighbour split its side of a shared border there.
+pub(crate) type Forced = [Vec<f64>; 4];
+
+/// Adaptive refinement of a conforming `initial` mesh of `surface`; a border edge with a
+/// `forced` parameter strictly inside is split whatever the tests say (the level cap
+/// included: the neighbour reached it from the same start). With a `rule`, edges on Bézier
+/// patch borders are split where the rule says and nowhere else (inter-patch mode).
+pub(crate) fn refine(
+    surface: &NurbsSurface,
+    options: &AdaptiveOptions,
+    initial: Tessellation,
+    forced: &Forced,
+    rule: Option<&BorderRule>,
+    max_triangles: usize,
+) -> Result<Tessellation, TessError> {
     let mesh = initial.mesh;
     let mut st = State {
         dom: ParamDomain::new(surface),
@@ -346,12 +373,36 @@ pub(crate) fn adaptive(
         )
     });
     let max_level = options.max_level;
+    let has_forced = forced.iter().any(|f| !f.is_empty());
     let mut rounds = 0u32;
     // Levels bound the depth; the round cap is a second guard.
     let max_rounds = 4 * max_level + 64;
-    while rounds < max_rounds && !options.tests.is_empty() {
+    while rounds < max_rounds && (!options.tests.is_empty() || has_forced) {
         let edges = build_edges(&st.tris);
         let ne = edges.keys.len();
+        // Edges whose fate is decided by the border samples, not by the tests.
+        let pinned: Vec<Option<bool>> = if has_forced || rule.is_some() {
+            edges
+                .keys
+                .par_iter()
+                .map(|&key| {
+                    let (a, b) = edge_ends(key);
+                    let (a, b) = (st.uv[a as usize], st.uv[b as usize]);
+                    if has_forced && st.dom.forced_between(forced, a, b) {
+                        Some(true)
+                    } else {
+                        // Across a seam or from a pole, as the edge's midpoint will be.
+                        rule.and_then(|r| {
+                            let mut ends = [a, b];
+                            st.dom.unwrap(&mut ends);
+                            r.verdict(ends[0], ends[1])
+                        })
+                    }
+                })
+                .collect()
+        } else {
+            vec![None; ne]
+        };
         // Midpoints of splittable edges, evaluated once per edge and cached across rounds.
         let missing: Vec<u64> = edges
             .keys
@@ -389,7 +440,7 @@ pub(crate) fn adaptive(
                     for k in 0..3 {
                         let e = edges.of_tri[t][k];
                         let key = edges.keys[e as usize];
-                        if st.level(key) >= max_level {
+                        if st.level(key) >= max_level || pinned[e as usize].is_some() {
                             continue;
                         }
                         let (x, y) = edge_ends(key);
@@ -418,11 +469,14 @@ pub(crate) fn adaptive(
             .into_par_iter()
             .map(|e| {
                 let key = edges.keys[e];
+                let (a, b) = edge_ends(key);
+                let (a, b) = (a as usize, b as usize);
+                if let Some(verdict) = pinned[e] {
+                    return verdict;
+                }
                 if st.level(key) >= max_level {
                     return false;
                 }
-                let (a, b) = edge_ends(key);
-                let (a, b) = (a as usize, b as usize);
                 let (_, mid) = st.mids[&key];
                 let (p1, p2, n1, n2) = (st.pos[a], st.pos[b], st.nrm[a], st.nrm[b]);
                 let apexes = edges.tris[e].iter().filter(|&&c| c != u32::MAX).map(|&c| {
@@ -489,6 +543,7 @@ pub(crate) fn adaptive(
                     }
                 };
                 match options.combine {
+                    _ if options.tests.is_empty() => false,
                     Combine::Any => options.tests.iter().any(verdict),
                     Combine::All => options.tests.iter().all(verdict),
                 }
@@ -499,7 +554,7 @@ pub(crate) fn adaptive(
         }
         rounds += 1;
         let flips = match (options.flips, sagitta, options.tests.len()) {
-            (true, Some(eps), 1) => flip_pass(&mut st, &edges, &mut marked, eps, surface),
+            (true, Some(eps), 1) => flip_pass(&mut st, &edges, &mut marked, &pinned, eps, surface),
             _ => Vec::new(),
         };
         if !marked.iter().any(|&m| m) {
@@ -670,6 +725,7 @@ fn flip_pass(
     st: &mut State,
     edges: &Edges,
     marked: &mut [bool],
+    pinned: &[Option<bool>],
     eps: f64,
     surface: &NurbsSurface,
 ) -> Vec<(usize, [u32; 3])> {
@@ -677,7 +733,7 @@ fn flip_pass(
     let mut touched: FxHashMap<u32, ()> = FxHashMap::default();
     let mut new_edges: FxHashMap<u64, ()> = FxHashMap::default();
     for e in 0..edges.keys.len() {
-        if !marked[e] || edges.tris[e][1] == u32::MAX {
+        if !marked[e] || edges.tris[e][1] == u32::MAX || pinned[e].is_some() {
             continue;
         }
         let (c0, c1) = (edges.tris[e][0], edges.tris[e][1]);

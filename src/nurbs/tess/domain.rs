@@ -109,6 +109,34 @@ impl ParamDomain {
         self.wrap((pts[0] + pts[1]) * 0.5)
     }
 
+    /// Whether edge (a, b) lies on a side of the domain that has a forced parameter strictly
+    /// between its ends (sides in [`crate::nurbs::patchset::Side`] order).
+    pub fn forced_between(&self, forced: &[Vec<f64>; 4], a: DVec2, b: DVec2) -> bool {
+        for (side, list) in forced.iter().enumerate() {
+            if list.is_empty() {
+                continue;
+            }
+            let (fixed, along) = if side < 2 { (0, 1) } else { (1, 0) };
+            let bound = if side % 2 == 0 {
+                self.lo[fixed]
+            } else {
+                self.hi[fixed]
+            };
+            // A pole vertex lies on both sides that end at the pole.
+            let on = |p: DVec2| p[fixed] == bound || self.free(p) == Some(fixed);
+            if !on(a) || !on(b) {
+                continue;
+            }
+            let (t0, t1) = (a[along].min(b[along]), a[along].max(b[along]));
+            let tol = PARAM_TOLERANCE * (self.hi[along] - self.lo[along]);
+            let i = list.partition_point(|&f| f <= t0 + tol);
+            if i < list.len() && list[i] < t1 - tol {
+                return true;
+            }
+        }
+        false
+    }
+
     /// Canonical parameter of a triangle's centroid.
     #[inline]
     pub fn centroid(&self, a: DVec2, b: DVec2, c: DVec2) -> DVec2 {
@@ -117,6 +145,9 @@ impl ParamDomain {
         self.wrap((pts[0] + pts[1] + pts[2]) / 3.0)
     }
 }
+
+/// Parameters closer than this (relative to the domain) are the same border sample.
+pub(crate) const PARAM_TOLERANCE: f64 = 1e-9;
 
 /// A surface sample: position and unit normal.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -369,11 +369,159 @@ impl Builder<'_> {
     }
 }
 
+/// Per-patch start cells of inter-patch mode (the adaptive default's start, so border samples
+/// are dyadic refinements of the same grid).
+const START_CELLS: usize = 3;
+
+/// Inter-patch mode (issue 37): every Bézier border curve is sampled at START_CELLS · 2^L
+/// equal parameter steps, L the smallest level whose chordal deviation measured on the curve
+/// alone is ≤ ε (D8: a function of the border's control points, so both neighbours agree, across
+/// surfaces of a patch set too); each patch's interior is then refined by the adaptive criterion
+/// (sagitta at edge midpoints and centroids, flips) with its border samples fixed. The thesis's
+/// per-patch levels (one uniform grid per patch, the worst region's resolution) made 5× the
+/// adaptive count on the peers' surface; this keeps the structure and spends triangles where the
+/// patch curves.
+pub(crate) fn interpatch_adaptive(
+    surface: &NurbsSurface,
+    eps: f64,
+    max_triangles: usize,
+    forced: &super::adaptive::Forced,
+) -> Result<Tessellation, TessError> {
+    let options = super::adaptive::AdaptiveOptions::sagitta(eps);
+    let initial = super::uniform::uniform(
+        surface,
+        [START_CELLS, START_CELLS],
+        true,
+        super::Diagonal::Best,
+        max_triangles,
+    )?;
+    let rule = BorderRule::new(surface, eps, options.max_level)?;
+    let levels = rule.segment_counts();
+    let mut t = super::adaptive::refine(
+        surface,
+        &options,
+        initial,
+        forced,
+        Some(&rule),
+        max_triangles,
+    )?;
+    t.stats.border_levels = levels;
+    t.stats.patch_levels.clear();
+    Ok(t)
+}
+
+/// Where inter-patch mode samples each Bézier border curve.
+pub(crate) struct BorderRule {
+    /// Patch borders along u and along v.
+    breaks: [Vec<f64>; 2],
+    /// `samples[d][k][piece]`: sorted parameters (the other coordinate) of the samples inside
+    /// border piece `piece` of the line where coordinate d equals `breaks[d][k]`.
+    samples: [Vec<Vec<Vec<f64>>>; 2],
+}
+
+impl BorderRule {
+    fn new(surface: &NurbsSurface, eps: f64, max_level: u32) -> Result<Self, TessError> {
+        let net = surface.decompose()?;
+        let ctx = Ctx {
+            surface,
+            dom: ParamDomain::new(surface),
+            net,
+            eps,
+        };
+        let [pu, pv] = ctx.net.patches;
+        let steps = |border: Border| -> usize {
+            if ctx.is_pole(border) {
+                return START_CELLS;
+            }
+            let pts = ctx.border_points(border);
+            let mut n = START_CELLS;
+            for _ in 0..max_level {
+                if curve_sagitta(&pts, n) <= eps {
+                    break;
+                }
+                n *= 2;
+            }
+            n
+        };
+        let inside = |lo: f64, hi: f64, n: usize| -> Vec<f64> {
+            (1..n).map(|k| lerp(lo, hi, k as f64 / n as f64)).collect()
+        };
+        let (bu, bv) = (&ctx.net.breaks_u, &ctx.net.breaks_v);
+        // Lines u = bu[ia] (curves along v), pieces b; lines v = bv[jb], pieces a.
+        let line = |pieces: &[f64], border: &dyn Fn(usize) -> Border| -> Vec<Vec<f64>> {
+            (0..pieces.len() - 1)
+                .map(|k| inside(pieces[k], pieces[k + 1], steps(ctx.canonical(border(k)))))
+                .collect()
+        };
+        let along_v: Vec<Vec<Vec<f64>>> = (0..=pu)
+            .map(|ia| line(bv, &|b| Border::AlongV { ia, b }))
+            .collect();
+        let along_u: Vec<Vec<Vec<f64>>> = (0..=pv)
+            .map(|jb| line(bu, &|a| Border::AlongU { a, jb }))
+            .collect();
+        Ok(BorderRule {
+            breaks: [bu.clone(), bv.clone()],
+            samples: [along_v, along_u],
+        })
+    }
+
+    /// Segments of every border piece (lines u = const first, then v = const).
+    fn segment_counts(&self) -> Vec<u32> {
+        self.samples
+            .iter()
+            .flatten()
+            .flatten()
+            .map(|s| s.len() as u32 + 1)
+            .collect()
+    }
+
+    /// For an edge on a patch border line: whether a sample lies strictly inside it (split it)
+    /// or not (keep it). `None` for an edge inside a patch.
+    pub(crate) fn verdict(&self, a: DVec2, b: DVec2) -> Option<bool> {
+        for d in 0..2 {
+            if a[d] != b[d] {
+                continue;
+            }
+            let Ok(k) = self.breaks[d].binary_search_by(|x| x.total_cmp(&a[d])) else {
+                continue;
+            };
+            let other = &self.breaks[1 - d];
+            let (t0, t1) = (a[1 - d].min(b[1 - d]), a[1 - d].max(b[1 - d]));
+            let piece = other
+                .partition_point(|&x| x <= t0)
+                .saturating_sub(1)
+                .min(other.len().saturating_sub(2));
+            let list = &self.samples[d][k][piece];
+            let tol = super::domain::PARAM_TOLERANCE * (other[other.len() - 1] - other[0]);
+            let i = list.partition_point(|&f| f <= t0 + tol);
+            return Some(i < list.len() && list[i] < t1 - tol);
+        }
+        None
+    }
+}
+
+/// The thesis's inter-patch levels (one grid per Bézier patch from curvature bounds, borders
+/// zipped): the start [`super::adaptive::Initial::InterPatch`] refines from.
 pub(crate) fn interpatch(
     surface: &NurbsSurface,
     eps: f64,
     max_triangles: usize,
 ) -> Result<Tessellation, TessError> {
+    interpatch_with_floors(surface, eps, max_triangles, &Default::default())
+}
+
+/// Least segment counts of the outer border curves, per side
+/// ([`crate::nurbs::patchset::Side`] order) and Bézier piece along it: a patch set's
+/// neighbour needs them so both sides of a shared border have the same samples.
+pub(crate) type Floors = [Vec<usize>; 4];
+
+pub(crate) fn interpatch_with_floors(
+    surface: &NurbsSurface,
+    eps: f64,
+    max_triangles: usize,
+    floors: &Floors,
+) -> Result<Tessellation, TessError> {
+    let floor = |side: usize, piece: usize| floors[side].get(piece).copied().unwrap_or(0);
     let net = surface.decompose()?;
     let ctx = Ctx {
         surface,
@@ -413,6 +561,9 @@ pub(crate) fn interpatch(
         .map(|(a, jb)| {
             let border = ctx.canonical(Border::AlongU { a, jb });
             let mut level = ctx.border_level(border);
+            if jb == 0 || jb == pv {
+                level = level.max(floor(if jb == 0 { 2 } else { 3 }, a));
+            }
             if !ctx.is_pole(border) {
                 for b in [wrap_b(jb as isize - 1), wrap_b(jb as isize)]
                     .into_iter()
@@ -429,6 +580,9 @@ pub(crate) fn interpatch(
         .map(|(ia, b)| {
             let border = ctx.canonical(Border::AlongV { ia, b });
             let mut level = ctx.border_level(border);
+            if ia == 0 || ia == pu {
+                level = level.max(floor(if ia == 0 { 0 } else { 1 }, b));
+            }
             if !ctx.is_pole(border) {
                 for a in [wrap_a(ia as isize - 1), wrap_a(ia as isize)]
                     .into_iter()

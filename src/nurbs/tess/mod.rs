@@ -18,11 +18,13 @@
 mod adaptive;
 mod domain;
 mod interpatch;
+mod set;
 mod uniform;
 
 use thiserror::Error;
 
 pub use adaptive::{AdaptiveOptions, Combine, EdgeTest, Initial, TwoEdgeSplit};
+pub use set::tessellate_set;
 pub use uniform::predict_uniform;
 
 use super::error::NurbsError;
@@ -79,6 +81,9 @@ pub enum TessError {
         value: f64,
         reason: &'static str,
     },
+    /// A patch set's borders cannot be made to conform (a declared join that does not hold).
+    #[error("patch set: {0}")]
+    Join(String),
     /// An error from the surface (knot insertion during decomposition).
     #[error(transparent)]
     Surface(#[from] NurbsError),
@@ -127,7 +132,12 @@ pub fn tessellate(
         } => uniform::uniform(surface, *cells, *per_patch, *diagonal, max_triangles)?,
         Mode::InterPatch { tolerance } => {
             check_positive("tolerance", *tolerance)?;
-            interpatch::interpatch(surface, *tolerance, max_triangles)?
+            interpatch::interpatch_adaptive(
+                surface,
+                *tolerance,
+                max_triangles,
+                &Default::default(),
+            )?
         }
         Mode::Adaptive(options) => adaptive::adaptive(surface, options, max_triangles)?,
     };

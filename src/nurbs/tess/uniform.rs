@@ -158,7 +158,11 @@ fn params(surface: &NurbsSurface, dir: Dir, cells: usize, per_patch: bool) -> Ve
 }
 
 /// Cells per direction after applying the closed-direction minimum of 3.
-fn cell_counts(surface: &NurbsSurface, cells: [usize; 2], per_patch: bool) -> [usize; 2] {
+pub(crate) fn cell_counts(
+    surface: &NurbsSurface,
+    cells: [usize; 2],
+    per_patch: bool,
+) -> [usize; 2] {
     let t = surface.topology();
     let spans = [
         surface.breakpoints(Dir::U).len() - 1,

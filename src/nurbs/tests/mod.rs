@@ -6,6 +6,7 @@ mod common;
 mod garbage;
 mod geometry;
 mod oracle;
+mod patchset;
 mod pn;
 mod tessellation;
 

@@ -410,6 +410,7 @@ pub(super) fn compile_params(
                     path,
                     written: written.value,
                     location,
+                    kind: ResourceKind::Mesh,
                 }))
             }
             (ArgKind::Tree, Some(v)) => Arg::Tree(c.tree_reference(v, owner)?),

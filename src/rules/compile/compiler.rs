@@ -25,7 +25,10 @@ impl<'a> Compiler<'a> {
     /// The index of `resource` in the program's list (added on first use).
     pub(super) fn resource(&self, resource: Resource) -> usize {
         let mut list = self.resources.borrow_mut();
-        match list.iter().position(|r| r.path == resource.path) {
+        match list
+            .iter()
+            .position(|r| r.path == resource.path && r.kind == resource.kind)
+        {
             Some(i) => i,
             None => {
                 list.push(resource);

@@ -24,7 +24,8 @@ use super::expr::{Expr, ExprError, BUILTIN_CONSTANT_NAMES};
 use super::operators::{self, ArgKind, Default, Family, OpId, OperatorDef, ParamDef};
 use super::program::{
     Arg, Call, Command, CommandKind, Compound, Condition, FrameParams, Look, OnIntersection, Op,
-    Param, ParamKind, Policy, Program, Property, Resource, Scalar, Step, StepBody, Vector,
+    Param, ParamKind, Policy, Program, Property, Resource, ResourceKind, Scalar, Step, StepBody,
+    Vector,
 };
 use super::property;
 use super::random::stream_key;

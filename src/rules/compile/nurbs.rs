@@ -10,17 +10,19 @@
 use std::ops::Range;
 
 use super::{as_scalar, closest_in, Compiler};
+use crate::nurbs::patchset::Side;
 use crate::rules::ast::{self, ArgValue, Scalar as AstScalar};
 use crate::rules::diagnostic::RuleError;
 use crate::rules::expr::Expr;
 use crate::rules::nurbs_def::{
-    Kind, Knots, Orient, Points, Profile, SurfaceDef, Weights, GENERATOR_NAMES,
+    JoinDef, Kind, Knots, Orient, PatchSource, Points, Profile, SurfaceDef, Weights,
+    GENERATOR_NAMES,
 };
-use crate::rules::program::{Param, Scalar};
+use crate::rules::program::{Param, Resource, ResourceKind, Scalar};
 use crate::rules::spanned::Spanned;
 
 /// The keys a `[nurbs.NAME]` table takes.
-pub const SURFACE_KEYS: [&str; 11] = [
+pub const SURFACE_KEYS: [&str; 13] = [
     "degree",
     "size",
     "points",
@@ -32,7 +34,13 @@ pub const SURFACE_KEYS: [&str; 11] = [
     "path",
     "orient",
     "path_tolerance",
+    "patches",
+    "joins",
 ];
+
+/// `patches` and `joins` (indices into [`SURFACE_KEYS`]).
+const PATCHES: usize = 11;
+const JOINS: usize = 12;
 
 /// The keys a curve takes (indices into [`SURFACE_KEYS`]).
 const CURVE_KEYS: [usize; 5] = [0, 1, 2, 3, 7];
@@ -182,6 +190,30 @@ impl Compiler<'_> {
                 knots,
             ));
         }
+        if let Some(patches) = values[PATCHES] {
+            refuse(
+                &(0..PATCHES).collect::<Vec<_>>(),
+                "a patch set takes `patches` and `joins` only (its surfaces bring the rest)",
+            )?;
+            let (source, names) = self.patch_source(name, patches)?;
+            let joins = match values[JOINS] {
+                Some(j) => self.joins(j, &names)?,
+                None => Vec::new(),
+            };
+            let one = self.number(1.0, None)?;
+            return Ok(def(
+                Kind::Surface,
+                [one.clone(), one.clone()],
+                [one.clone(), one],
+                Points::Set {
+                    patches: source,
+                    joins,
+                },
+                None,
+                [Knots::ClampedUniform, Knots::ClampedUniform],
+            ));
+        }
+        refuse(&[JOINS], "`joins` belongs to a patch set (give `patches`)")?;
         refuse(
             &[7],
             "a surface has `knots_u` and `knots_v`; `knots` is a curve's",
@@ -271,6 +303,128 @@ impl Compiler<'_> {
         let weights = values[3].map(|w| self.weights(w)).transpose()?;
         let knots = [self.knots(values[4])?, self.knots(values[5])?];
         Ok(def(Kind::Surface, degree, size, points, weights, knots))
+    }
+
+    /// A patch set's `patches`: a file path, or a list of surface names (returned too, for
+    /// `joins`).
+    fn patch_source(
+        &self,
+        name: &str,
+        value: &Spanned<ArgValue>,
+    ) -> Result<(PatchSource, Vec<String>), RuleError> {
+        match &value.value {
+            ArgValue::Text(written) => {
+                let path = std::path::PathBuf::from(written);
+                let path = if path.is_absolute() {
+                    path
+                } else {
+                    self.base_dir.join(path)
+                };
+                let index = self.resource(Resource {
+                    path,
+                    written: written.clone(),
+                    location: self.location(value.span.as_ref()),
+                    kind: ResourceKind::Patches,
+                });
+                Ok((PatchSource::File(index), Vec::new()))
+            }
+            ArgValue::List(items) if !items.is_empty() => {
+                let tables = &self.nurbs_defs.0;
+                let mut indices = Vec::with_capacity(items.len());
+                let mut names = Vec::with_capacity(items.len());
+                for item in items {
+                    let (ArgValue::Text(n) | ArgValue::Name(n)) = &item.value else {
+                        return Err(self.error(
+                            item.span.clone(),
+                            "a patch set lists the names of [nurbs.NAME] surfaces",
+                        ));
+                    };
+                    let k = self.surface_reference(item)?;
+                    let table = &tables[k].1.value;
+                    if n == name || table.0.iter().any(|(key, _)| key.value == "patches") {
+                        return Err(self.error(
+                            item.span.clone(),
+                            format!("`{n}` is a patch set: a set lists single surfaces"),
+                        ));
+                    }
+                    if names.contains(n) {
+                        return Err(self.error(
+                            item.span.clone(),
+                            format!("`{n}` is listed twice"),
+                        ));
+                    }
+                    indices.push(k);
+                    names.push(n.clone());
+                }
+                Ok((PatchSource::Named(indices), names))
+            }
+            _ => Err(self.error(
+                value.span.clone(),
+                "`patches` is a patch file (\".bpt\" or OBJ free-form \".obj\") or a non-empty list of [nurbs.NAME] surface names",
+            )),
+        }
+    }
+
+    /// `joins = [["PATCH.SIDE", "PATCH.SIDE"], …]`: PATCH a listed surface's name, or a patch
+    /// file's patch number (from 0); SIDE `u0`, `u1`, `v0` or `v1`.
+    fn joins(
+        &self,
+        value: &Spanned<ArgValue>,
+        names: &[String],
+    ) -> Result<Vec<JoinDef>, RuleError> {
+        let shape = |span: Option<Range<usize>>| {
+            self.error(
+                span,
+                "`joins` is a list of pairs [\"PATCH.SIDE\", \"PATCH.SIDE\"] (PATCH a listed surface or a file's patch number from 0; SIDE u0, u1, v0 or v1)",
+            )
+        };
+        let ArgValue::List(pairs) = &value.value else {
+            return Err(shape(value.span.clone()));
+        };
+        let border = |item: &Spanned<ArgValue>| -> Result<(usize, Side), RuleError> {
+            let ArgValue::Text(text) = &item.value else {
+                return Err(shape(item.span.clone()));
+            };
+            let (patch, side) = text
+                .rsplit_once('.')
+                .ok_or_else(|| shape(item.span.clone()))?;
+            let side = Side::parse(side).ok_or_else(|| {
+                self.error(
+                    item.span.clone(),
+                    format!("unknown side `{side}`: a side is u0, u1, v0 or v1"),
+                )
+            })?;
+            let patch = if names.is_empty() {
+                patch.parse::<usize>().map_err(|_| {
+                    self.error(
+                        item.span.clone(),
+                        format!("`{patch}` is not a patch number (the file's patches are numbered from 0)"),
+                    )
+                })?
+            } else {
+                names.iter().position(|n| n == patch).ok_or_else(|| {
+                    self.error(
+                        item.span.clone(),
+                        format!(
+                            "`{patch}` is not one of this set's patches ({})",
+                            names.join(", ")
+                        ),
+                    )
+                })?
+            };
+            Ok((patch, side))
+        };
+        let mut out = Vec::with_capacity(pairs.len());
+        for pair in pairs {
+            match &pair.value {
+                ArgValue::List(two) if two.len() == 2 => out.push(JoinDef {
+                    a: border(&two[0])?,
+                    b: border(&two[1])?,
+                }),
+                _ => return Err(shape(pair.span.clone())),
+            }
+        }
+        Ok(out)
     }
 
     /// The index of the curve a `profile` or `path` names.
@@ -510,6 +664,8 @@ impl Compiler<'_> {
         for (def, (_, table)) in surfaces.iter().zip(&self.nurbs_defs.0) {
             let built = match def.kind {
                 Kind::Curve => def.build_curve(&slots).map(drop),
+                // A set's listed surfaces are checked as themselves; its file at run time.
+                Kind::Surface if def.is_set() => Ok(()),
                 Kind::Surface => def.build(surfaces, &slots).map(drop),
             };
             if let Err(e) = built {

@@ -359,8 +359,8 @@ impl<'a> Linter<'a> {
             }
         }
         for (key, value) in &table.0 {
-            // Names of curves and choices, not expressions.
-            let named = matches!(key.value.as_str(), "path" | "orient")
+            // Names of curves, patches, files and choices, not expressions.
+            let named = matches!(key.value.as_str(), "path" | "orient" | "patches" | "joins")
                 || (key.value == "profile" && matches!(value.value, ArgValue::Text(_)));
             if named {
                 continue;
