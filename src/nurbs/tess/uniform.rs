@@ -10,6 +10,8 @@
 //! is one vertex, and the triangles that collapse are dropped. Both are decided by
 //! [`Layout::key`], which the exact count ([`predict_uniform`]) and the build share.
 
+use rayon::prelude::*;
+
 use super::super::error::Dir;
 use super::super::mesh::TriMesh;
 use super::super::surface::NurbsSurface;
@@ -262,31 +264,24 @@ pub(crate) fn uniform(
     let layout = Layout::new(cu, cv, [top.closed_u, top.closed_v], top.poles);
     let grid = surface.grid(&us, &vs, true)?;
     let nv = vs.len();
-    let mut ids = vec![u32::MAX; us.len() * nv];
-    let mut pole_ids = [u32::MAX; 4];
-    let mut mesh = TriMesh::default();
-    for i in 0..=cu {
-        for j in 0..=cv {
-            let id = match layout.key(i, j) {
-                Key::Grid(gi, gj) => {
-                    let slot = gi * nv + gj;
-                    if ids[slot] == u32::MAX {
-                        ids[slot] = mesh.positions.len() as u32;
-                        push_vertex(&mut mesh, &grid, &us, &vs, gi, gj, nv);
-                    }
-                    ids[slot]
-                }
-                Key::Pole(g) => {
-                    if pole_ids[g] == u32::MAX {
-                        pole_ids[g] = mesh.positions.len() as u32;
-                        push_vertex(&mut mesh, &grid, &us, &vs, i, j, nv);
-                    }
-                    pole_ids[g]
-                }
-            };
-            ids[i * nv + j] = id;
-        }
-    }
+    let plain =
+        !layout.closed[0] && !layout.closed[1] && layout.pole_group.iter().all(Option::is_none);
+    let (mut mesh, ids) = if plain {
+        // Every grid sample is its own vertex, in grid order: the samples become the mesh.
+        let uvs = us
+            .iter()
+            .flat_map(|&u| vs.iter().map(move |&v| [u, v]))
+            .collect();
+        let mesh = TriMesh {
+            positions: grid.points,
+            normals: grid.normals,
+            uvs,
+            triangles: Vec::new(),
+        };
+        (mesh, (0..(us.len() * nv) as u32).collect())
+    } else {
+        welded_vertices(&layout, &grid, &us, &vs)
+    };
     mesh.triangles.reserve(triangles as usize);
     // Diagonal per cell: (a, c) unless `Best` finds (b, d) closer to the surface at the cell
     // centre. Only cells whose four corners are distinct vertices may flip, so the count is the
@@ -358,7 +353,10 @@ fn grid_deviation(
     let at = |g: &super::super::surface::GridSamples, i: usize, j: usize, n: usize| {
         DVec3::from_array(g.points[i * n + j])
     };
-    let mut worst = 0.0f64;
+    // Rows in parallel; the maximum does not depend on the order.
+    let rows = |n: usize, row: &(dyn Fn(usize) -> f64 + Sync)| {
+        (0..n).into_par_iter().map(row).reduce(|| 0.0, f64::max)
+    };
     // Centroids of (a, b, c) and (a, c, d), or of (a, b, d) and (b, c, d) in flipped cells.
     let any_flip = flip.iter().any(|&f| f);
     let g1 = surface.grid(&mix(us, 1.0, 2.0), &mix(vs, 2.0, 1.0), false)?;
@@ -371,7 +369,8 @@ fn grid_deviation(
     } else {
         Default::default()
     };
-    for i in 0..cu {
+    let mut worst = rows(cu, &|i| {
+        let mut worst = 0.0f64;
         for j in 0..cv {
             let (a, b, c, d) = (pos(i, j), pos(i + 1, j), pos(i + 1, j + 1), pos(i, j + 1));
             if flip[i * cv + j] {
@@ -387,34 +386,75 @@ fn grid_deviation(
                 worst = worst.max((at(&g2, i, j, cv) - (a + c + d) / 3.0).length());
             }
         }
-    }
+        worst
+    });
     drop((g1, g2, g3, g4));
     let ge = surface.grid(&u_mid, vs, false)?;
-    for i in 0..cu {
-        for j in 0..=cv {
-            worst = worst.max((at(&ge, i, j, nv) - (pos(i, j) + pos(i + 1, j)) * 0.5).length());
-        }
-    }
+    worst = worst.max(rows(cu, &|i| {
+        (0..=cv)
+            .map(|j| (at(&ge, i, j, nv) - (pos(i, j) + pos(i + 1, j)) * 0.5).length())
+            .fold(0.0, f64::max)
+    }));
     drop(ge);
     let ge = surface.grid(us, &v_mid, false)?;
-    for i in 0..=cu {
-        for j in 0..cv {
-            worst = worst.max((at(&ge, i, j, cv) - (pos(i, j) + pos(i, j + 1)) * 0.5).length());
-        }
-    }
+    worst = worst.max(rows(cu + 1, &|i| {
+        (0..cv)
+            .map(|j| (at(&ge, i, j, cv) - (pos(i, j) + pos(i, j + 1)) * 0.5).length())
+            .fold(0.0, f64::max)
+    }));
     drop(ge);
     let ge = surface.grid(&u_mid, &v_mid, false)?;
-    for i in 0..cu {
-        for j in 0..cv {
-            let chord = if flip[i * cv + j] {
-                pos(i + 1, j) + pos(i, j + 1)
-            } else {
-                pos(i, j) + pos(i + 1, j + 1)
+    worst = worst.max(rows(cu, &|i| {
+        (0..cv)
+            .map(|j| {
+                let chord = if flip[i * cv + j] {
+                    pos(i + 1, j) + pos(i, j + 1)
+                } else {
+                    pos(i, j) + pos(i + 1, j + 1)
+                };
+                (at(&ge, i, j, cv) - chord * 0.5).length()
+            })
+            .fold(0.0, f64::max)
+    }));
+    Ok(worst)
+}
+
+/// Vertices of a grid with seams or poles: a seam column is its first column, every sample on a
+/// collapsed border one vertex ([`Layout::key`]). Returns the mesh's vertices and the vertex of
+/// every grid sample.
+fn welded_vertices(
+    layout: &Layout,
+    grid: &super::super::surface::GridSamples,
+    us: &[f64],
+    vs: &[f64],
+) -> (TriMesh, Vec<u32>) {
+    let (cu, cv, nv) = (layout.cu, layout.cv, vs.len());
+    let mut ids = vec![u32::MAX; us.len() * nv];
+    let mut pole_ids = [u32::MAX; 4];
+    let mut mesh = TriMesh::default();
+    for i in 0..=cu {
+        for j in 0..=cv {
+            let id = match layout.key(i, j) {
+                Key::Grid(gi, gj) => {
+                    let slot = gi * nv + gj;
+                    if ids[slot] == u32::MAX {
+                        ids[slot] = mesh.positions.len() as u32;
+                        push_vertex(&mut mesh, grid, us, vs, gi, gj, nv);
+                    }
+                    ids[slot]
+                }
+                Key::Pole(g) => {
+                    if pole_ids[g] == u32::MAX {
+                        pole_ids[g] = mesh.positions.len() as u32;
+                        push_vertex(&mut mesh, grid, us, vs, i, j, nv);
+                    }
+                    pole_ids[g]
+                }
             };
-            worst = worst.max((at(&ge, i, j, cv) - chord * 0.5).length());
+            ids[i * nv + j] = id;
         }
     }
-    Ok(worst)
+    (mesh, ids)
 }
 
 fn push_vertex(
