@@ -67,9 +67,18 @@ impl<'m> KernelBuilder<'m> {
 
     /// What the emission made (ids ascending) and what it dropped.
     pub fn finish(self) -> (Selection, ImportReport) {
-        let mut edges: Vec<EdgeId> = Vec::new();
+        // Every vertex is new, so every edge of a new face is too, and the loop that made it
+        // is its first: taking each edge at that loop lists it once, in the order it was made
+        // (ascending ids unless freed slots were reused), so normalizing is one linear pass.
+        let mut edges: Vec<EdgeId> =
+            Vec::with_capacity(self.faces.len() * 3 / 2 + self.lines.len());
         for &f in &self.faces {
-            edges.extend(self.mesh.face_edges(f));
+            for l in self.mesh.face_loops(f) {
+                let e = self.mesh.lp(l).edge;
+                if self.mesh.edge(e).first_loop == Some(l) {
+                    edges.push(e);
+                }
+            }
         }
         edges.extend(&self.lines);
         let made = Selection::from_parts(self.verts, edges, self.faces);
