@@ -326,6 +326,20 @@ fn a_wall_cut_by_windows_and_a_drill_has_the_volume_and_genus_it_should() {
         "{}",
         stderr(&o)
     );
+    // A cutter's part named as the rule file is the default part: the error says so.
+    std::fs::write(
+        d.path().join("drill.toml"),
+        "[start]\ncube = {}\n[[step]]\ncube = { size = 0.5 }\npart = \"drill\"\n\
+         [[step]]\nboolean = { with = \"drill\" }\n",
+    )
+    .unwrap();
+    let o = graftal_in(d.path(), &["run", "drill.toml", "-o", "d.obj"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is the default part") && stderr(&o).contains("another name"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

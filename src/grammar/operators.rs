@@ -679,6 +679,14 @@ pub(super) fn apply(
                 .filter(|f| part_of(f.index()) != *with as i32)
                 .collect();
             drop(part_of);
+            if *with == 0 && own.is_empty() {
+                // A part named as the rule file is the default part: everything no step put in
+                // a part is in it, the other operand too.
+                return Err(ops::OpError::Degenerate(
+                    "boolean: the `with` part is the default part (it has the rule file's name and holds every face no step put in a part), so the selection has no faces outside it: give the other operand's part another name".to_owned(),
+                )
+                .into());
+            }
             if others.is_empty() || own.is_empty() {
                 return Err(ops::OpError::Degenerate(format!(
                     "boolean: {} has no faces (the selection holds {} faces outside the `with` part)",
