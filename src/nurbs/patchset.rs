@@ -135,7 +135,12 @@ impl PatchSet {
         // Sort by key, then border: equal rows become neighbours, deterministically.
         candidates.sort();
         let count = self.surfaces.len();
-        let index_of = |b: BorderRef| candidates.iter().position(|c| c.1 == b);
+        let position: std::collections::BTreeMap<BorderRef, usize> = candidates
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (c.1, k))
+            .collect();
+        let index_of = |b: BorderRef| position.get(&b).copied();
         // Links (x, y, y reads reversed against x).
         let mut links: Vec<(usize, usize, bool)> = Vec::new();
         for k in 1..candidates.len() {

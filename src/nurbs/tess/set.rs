@@ -152,27 +152,26 @@ fn settle(
             .collect();
         let mut dirty = vec![false; n];
         for group in groups {
-            for (x, &bx) in group.members.iter().enumerate() {
-                for (y, &by) in group.members.iter().enumerate() {
-                    if x == y {
-                        continue;
-                    }
-                    let reversed = group.reversed[x] != group.reversed[y];
-                    let theirs = map_params(
-                        &samples[by.surface][by.side.index()],
-                        &doms[by.surface],
-                        by.side,
-                        &doms[bx.surface],
-                        bx.side,
-                        reversed,
-                    );
-                    let mine = &samples[bx.surface][bx.side.index()];
-                    if !same_params(mine, &theirs, &doms[bx.surface], bx.side) {
-                        dirty[bx.surface] = true;
-                        let list = &mut wanted[bx.surface][bx.side.index()];
-                        list.push(theirs);
-                        list.push(mine.clone());
-                    }
+            // Each member against the first, both ways: all agree when each agrees with it
+            // (linear in the group, however many borders a hostile file makes coincide).
+            let pairs = (1..group.members.len()).flat_map(|k| [(k, 0), (0, k)]);
+            for (x, y) in pairs {
+                let (bx, by) = (group.members[x], group.members[y]);
+                let reversed = group.reversed[x] != group.reversed[y];
+                let theirs = map_params(
+                    &samples[by.surface][by.side.index()],
+                    &doms[by.surface],
+                    by.side,
+                    &doms[bx.surface],
+                    bx.side,
+                    reversed,
+                );
+                let mine = &samples[bx.surface][bx.side.index()];
+                if !same_params(mine, &theirs, &doms[bx.surface], bx.side) {
+                    dirty[bx.surface] = true;
+                    let list = &mut wanted[bx.surface][bx.side.index()];
+                    list.push(theirs);
+                    list.push(mine.clone());
                 }
             }
         }

@@ -239,3 +239,21 @@ fn a_set_is_deterministic_and_capped() {
         Err(TessError::TriangleLimit { .. })
     ));
 }
+
+#[test]
+fn many_coincident_patches_stay_linear() {
+    // A hostile set: 2,000 copies of one patch. Every border is shared by 2,000 sides; the
+    // exchange and the weld compare each with the first, so this stays fast.
+    let one = two_patches(0.0).remove(0);
+    let set = PatchSet::new(vec![one; 2000]);
+    let mode = Mode::Uniform {
+        cells: [2, 2],
+        per_patch: false,
+        diagonal: Diagonal::Fixed,
+    };
+    let t = tessellate_set(&set, &mode, 1_000_000).unwrap();
+    assert_eq!(t.mesh.triangles.len(), 2000 * 8);
+    // The copies share their 8 border vertices; each keeps its own centre.
+    assert_eq!(t.mesh.positions.len(), 8 + 2000);
+    assert_eq!(t.mesh.edge_census().boundary.len(), 0);
+}
