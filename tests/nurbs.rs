@@ -727,3 +727,27 @@ fn patch_set_errors_are_located() {
     assert!(err.contains("bad.bpt:4:5"), "{err}");
     assert!(!dir.path().join("out.obj").exists());
 }
+
+#[test]
+fn nurbs_part_places_a_patch_set() {
+    // A 2 × 1 grid's two faces each get a teapot, tessellated once and placed.
+    let dir = temp_dir();
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("rules/teapot.bpt"),
+        dir.path().join("teapot.bpt"),
+    )
+    .unwrap();
+    let text = "[nurbs.teapot]\npatches = \"teapot.bpt\"\n\n[start]\ngrid = { segments = [2, 1], size = [2, 1] }\n\n[[step]]\nname = \"pots\"\nnurbs_part = { surface = \"teapot\", mode = \"uniform\", cells = [4, 4] }\n";
+    std::fs::write(dir.path().join("p.toml"), text).unwrap();
+    let o = graftal_in(
+        dir.path(),
+        &["run", "p.toml", "-o", "p.obj", "--stats", "-"],
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let s = stats(&o);
+    let one = 32 * 32 - 8 * 4;
+    assert_eq!(surface_of(&s, "pots")["triangles"], 2 * one);
+    // The grid and two teapots of 4 sheets each.
+    assert_eq!(s["mesh"]["components"], 1 + 2 * 4);
+    assert_eq!(s["mesh"]["non_manifold_vertices"], 0);
+}

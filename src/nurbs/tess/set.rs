@@ -6,9 +6,11 @@
 //! parameters (mapped onto [0, 1], reversed where the border runs the other way):
 //!
 //! - uniform: the cell count along the border is the larger of the two sides';
-//! - inter-patch: each Bézier piece of the border gets at least the neighbour's segment count
-//!   (D8's rule, "a function of data both neighbours hold", across surfaces);
-//! - adaptive: every parameter where the neighbour split its side is split here too.
+//! - inter-patch: every border is sampled from its own curve (D8: both sides compute the same
+//!   samples), and any sample one side has and the other lacks is forced on the other;
+//! - adaptive: every parameter where the neighbour split its side is split here too (from a
+//!   uniform start, or from the thesis's per-patch levels, where each Bézier piece of a shared
+//!   border gets at least the neighbour's segment count).
 //!
 //! A surface whose side still differs from its neighbour's is tessellated again with the
 //! neighbour's samples as its constraint. Every constraint only adds samples, and counts and
