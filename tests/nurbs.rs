@@ -31,6 +31,15 @@ fn run_stats(args: &[&str]) -> Value {
     stats(&o)
 }
 
+/// Writes `text` as `dir/NAME.toml`, runs it to `dir/NAME.obj` and returns its stats.
+fn run_text(dir: &Path, name: &str, text: &str) -> Value {
+    std::fs::write(dir.join(format!("{name}.toml")), text).unwrap();
+    let (rules, out) = (format!("{name}.toml"), format!("{name}.obj"));
+    let o = graftal_in(dir, &["run", &rules, "-o", &out, "--stats", "-"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    stats(&o)
+}
+
 fn surface_of<'a>(s: &'a Value, step: &str) -> &'a Value {
     let steps = s["steps"].as_array().unwrap();
     &steps.iter().find(|x| x["name"] == step).unwrap()["surface"]
@@ -380,13 +389,7 @@ fn nurbs_patch_replaces_quads_and_keeps_the_solid_closed() {
     // Without lift the patch is the face itself: the slab keeps its volume.
     let dir = temp_dir();
     let text = "[start]\ngrid = { segments = [2, 2], size = [2, 2] }\n[[step]]\nextrude_region = { keep_original = true, offset = [0, 0, 1] }\n[[step]]\nselect = \"normal.z > 0.5\"\nnurbs_patch = { lift = 0, cells = 5 }\n";
-    std::fs::write(dir.path().join("p.toml"), text).unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &["run", "p.toml", "-o", "p.obj", "--stats", "-"],
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let flat = stats(&o);
+    let flat = run_text(dir.path(), "p", text);
     assert_eq!(flat["mesh"]["watertight"], true);
     assert!((flat["mesh"]["volume"].as_f64().unwrap() - 4.0).abs() < 1e-12);
 }
@@ -575,10 +578,8 @@ fn teapot(dir: &Path, file: &str, step: &str) -> (Value, graftal::io::IndexedMes
         std::fs::copy(root.join(from), dir.join(to)).unwrap();
     }
     let text = format!("[nurbs.teapot]\npatches = \"{file}\"\n\n[start]\nnurbs = {{ surface = \"teapot\", {step} }}\n");
-    std::fs::write(dir.join("t.toml"), text).unwrap();
-    let o = graftal_in(dir, &["run", "t.toml", "-o", "t.obj", "--stats", "-"]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    (stats(&o), common::read_mesh(&dir.join("t.obj")))
+    let s = run_text(dir, "t", &text);
+    (s, common::read_mesh(&dir.join("t.obj")))
 }
 
 #[test]
@@ -669,13 +670,7 @@ fn a_named_patch_set_welds_a_reversed_border() {
         b.join(", ")
     );
     let dir = temp_dir();
-    std::fs::write(dir.path().join("p.toml"), text).unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &["run", "p.toml", "-o", "p.obj", "--stats", "-"],
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let s = stats(&o);
+    let s = run_text(dir.path(), "p", &text);
     let mesh = common::read_mesh(&dir.path().join("p.obj"));
     assert_eq!(s["mesh"]["components"], 1);
     assert_eq!(s["mesh"]["manifold"], true);
@@ -738,13 +733,7 @@ fn nurbs_part_places_a_patch_set() {
     )
     .unwrap();
     let text = "[nurbs.teapot]\npatches = \"teapot.bpt\"\n\n[start]\ngrid = { segments = [2, 1], size = [2, 1] }\n\n[[step]]\nname = \"pots\"\nnurbs_part = { surface = \"teapot\", mode = \"uniform\", cells = [4, 4] }\n";
-    std::fs::write(dir.path().join("p.toml"), text).unwrap();
-    let o = graftal_in(
-        dir.path(),
-        &["run", "p.toml", "-o", "p.obj", "--stats", "-"],
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let s = stats(&o);
+    let s = run_text(dir.path(), "p", text);
     let one = 32 * 32 - 8 * 4;
     assert_eq!(surface_of(&s, "pots")["triangles"], 2 * one);
     // The grid and two teapots of 4 sheets each.

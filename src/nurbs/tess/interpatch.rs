@@ -38,7 +38,17 @@ struct Ctx<'a> {
     eps: f64,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    /// The surface's Bézier decomposition and domain, at tolerance `eps`.
+    fn new(surface: &'a NurbsSurface, eps: f64) -> Result<Self, TessError> {
+        Ok(Ctx {
+            surface,
+            dom: ParamDomain::new(surface),
+            net: surface.decompose()?,
+            eps,
+        })
+    }
+
     fn canonical(&self, border: Border) -> Border {
         let [pu, pv] = self.net.patches;
         match border {
@@ -421,13 +431,7 @@ pub(crate) struct BorderRule {
 
 impl BorderRule {
     fn new(surface: &NurbsSurface, eps: f64, max_level: u32) -> Result<Self, TessError> {
-        let net = surface.decompose()?;
-        let ctx = Ctx {
-            surface,
-            dom: ParamDomain::new(surface),
-            net,
-            eps,
-        };
+        let ctx = Ctx::new(surface, eps)?;
         let [pu, pv] = ctx.net.patches;
         let steps = |border: Border| -> usize {
             if ctx.is_pole(border) {
@@ -522,13 +526,7 @@ pub(crate) fn interpatch_with_floors(
     floors: &Floors,
 ) -> Result<Tessellation, TessError> {
     let floor = |side: usize, piece: usize| floors[side].get(piece).copied().unwrap_or(0);
-    let net = surface.decompose()?;
-    let ctx = Ctx {
-        surface,
-        dom: ParamDomain::new(surface),
-        net,
-        eps,
-    };
+    let ctx = Ctx::new(surface, eps)?;
     let [pu, pv] = ctx.net.patches;
     // Levels: patches first, then borders. A border's level is the maximum of its curve's own
     // level and the along-border level of the patches on both sides: a function of data both

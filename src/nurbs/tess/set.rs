@@ -51,19 +51,8 @@ pub fn tessellate_set(
     let parts = match mode {
         Mode::Adaptive(options) => {
             options.validate()?;
-            let start = match options.initial {
-                Initial::Uniform {
-                    cells,
-                    per_patch,
-                    diagonal,
-                } => Mode::Uniform {
-                    cells,
-                    per_patch,
-                    diagonal,
-                },
-                Initial::InterPatch { tolerance } => Mode::InterPatch { tolerance },
-            };
-            let initial = tessellate_parts(set, &start, &doms, &groups, max_triangles)?.meshes;
+            let initial =
+                tessellate_parts(set, &options.initial, &doms, &groups, max_triangles)?.meshes;
             settle(surfaces, &doms, &groups, max_triangles, |s, wanted, cap| {
                 let forced = forced_params(&doms[s], wanted);
                 adaptive::refine(
@@ -83,8 +72,17 @@ pub fn tessellate_set(
                 interpatch::interpatch_adaptive(&surfaces[s], *tolerance, cap, &forced)
             })?
         }
-        uniform @ Mode::Uniform { .. } => {
-            tessellate_parts(set, uniform, &doms, &groups, max_triangles)?
+        Mode::Uniform {
+            cells,
+            per_patch,
+            diagonal,
+        } => {
+            let grid = Initial::Uniform {
+                cells: *cells,
+                per_patch: *per_patch,
+                diagonal: *diagonal,
+            };
+            tessellate_parts(set, &grid, &doms, &groups, max_triangles)?
         }
     };
     // Uniform mode measures on its own grids; the others are measured here, per surface.
@@ -92,17 +90,18 @@ pub fn tessellate_set(
     weld(surfaces, &doms, &groups, parts, measure)
 }
 
-/// The conforming (not yet welded) per-surface meshes of a non-adaptive mode.
+/// The conforming (not yet welded) per-surface meshes of a uniform grid or of the thesis's
+/// per-patch levels (the starts adaptive refinement takes).
 fn tessellate_parts(
     set: &PatchSet,
-    mode: &Mode,
+    start: &Initial,
     doms: &[ParamDomain],
     groups: &[BorderGroup],
     max_triangles: usize,
 ) -> Result<Parts, TessError> {
     let surfaces = &set.surfaces;
-    match mode {
-        Mode::Uniform {
+    match start {
+        Initial::Uniform {
             cells,
             per_patch,
             diagonal,
@@ -110,14 +109,13 @@ fn tessellate_parts(
             let cells = uniform_cells(&surfaces[s], *cells, *per_patch, wanted);
             uniform::uniform(&surfaces[s], cells, *per_patch, *diagonal, cap)
         }),
-        Mode::InterPatch { tolerance } => {
+        Initial::InterPatch { tolerance } => {
             check_positive("tolerance", *tolerance)?;
             settle(surfaces, doms, groups, max_triangles, |s, wanted, cap| {
                 let floors = interpatch_floors(&surfaces[s], wanted);
                 interpatch::interpatch_with_floors(&surfaces[s], *tolerance, cap, &floors)
             })
         }
-        Mode::Adaptive(_) => unreachable!("adaptive starts from a non-adaptive mode"),
     }
 }
 
@@ -231,10 +229,10 @@ fn interpatch_floors(surface: &NurbsSurface, wanted: &Wanted) -> Floors {
         let mut floor = vec![0usize; breaks.len() - 1];
         for list in lists {
             for (k, w) in breaks.windows(2).enumerate() {
+                // Lists are sorted: the samples strictly inside the piece, by two searches.
                 let inside = list
-                    .iter()
-                    .filter(|&&t| t > w[0] + tol && t < w[1] - tol)
-                    .count();
+                    .partition_point(|&t| t < w[1] - tol)
+                    .saturating_sub(list.partition_point(|&t| t <= w[0] + tol));
                 floor[k] = floor[k].max(inside + 1);
             }
         }

@@ -4,7 +4,7 @@
 use crate::nurbs::mesh::TriMesh;
 use crate::nurbs::patchset::{BorderRef, Join, PatchSet, Side};
 use crate::nurbs::surface::NurbsSurface;
-use crate::nurbs::tess::{tessellate_set, AdaptiveOptions, Diagonal, Mode, TessError};
+use crate::nurbs::tess::{tessellate_set, AdaptiveOptions, Diagonal, Initial, Mode, TessError};
 
 /// Height along the shared border x = 3: chosen so that evaluating it at t and at 1 − t gives
 /// different last bits (the crack the issue saw at z = 0.15).
@@ -64,6 +64,13 @@ fn modes() -> Vec<(&'static str, Mode)> {
         ),
         ("interpatch", Mode::InterPatch { tolerance: 1e-3 }),
         ("adaptive", Mode::Adaptive(AdaptiveOptions::sagitta(1e-4))),
+        (
+            "adaptive from the thesis's per-patch levels",
+            Mode::Adaptive(AdaptiveOptions {
+                initial: Initial::InterPatch { tolerance: 1e-3 },
+                ..AdaptiveOptions::sagitta(1e-4)
+            }),
+        ),
     ]
 }
 
