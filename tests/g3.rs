@@ -451,3 +451,33 @@ fn dropping_unexported_layers_leaves_the_export_unchanged() {
     // The G³ models (flags, tree) carry frames to drop.
     assert!(dropped >= 2);
 }
+
+/// Stored face normals are fresh by construction, like every other kernel
+/// invariant: each example, validated (normals bit for bit) after every step.
+#[test]
+fn every_example_keeps_the_kernel_valid_after_every_step() {
+    use graftal::rules::compile::{compile, parse};
+    use graftal::rules::diagnostic::SourceFile;
+    use graftal::rules::spanned::SourceFormat;
+    let mut paths: Vec<_> = std::fs::read_dir("rules")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("toml" | "ron")))
+        .collect();
+    paths.sort();
+    assert!(paths.len() > 20, "the examples are in rules/");
+    for path in paths {
+        let format = match path.extension().and_then(|e| e.to_str()) {
+            Some("ron") => SourceFormat::Ron,
+            _ => SourceFormat::Toml,
+        };
+        let file = SourceFile {
+            name: path.display().to_string(),
+            text: std::fs::read_to_string(&path).unwrap(),
+        };
+        let ast = parse(&file, format).unwrap_or_else(|e| panic!("{}", e.headline()));
+        let program = compile(&file, &ast, &[], std::path::Path::new("rules"))
+            .unwrap_or_else(|e| panic!("{}", e.headline()));
+        run_validated(&program, RunOptions::default());
+    }
+}

@@ -502,7 +502,7 @@ mod tests {
         let second = create::create_uv_sphere(&mut mesh, 20, 11, 0.7).unwrap();
         for v in second.verts {
             let p = mesh.position(v);
-            mesh.set_position(v, p + DVec3::new(0.8, 0.1, 0.0));
+            mesh.move_vert(v, p + DVec3::new(0.8, 0.1, 0.0));
         }
         let mut indexed = mesh.to_indexed();
         let near = indexed.positions[5].map(|x| x + 1e-7);

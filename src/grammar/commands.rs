@@ -284,8 +284,7 @@ pub fn apply(
             // Attributes blend by the new node's place along the edge.
             let t = (plan.position - pa).dot(pb - pa) / (pb - pa).length_squared().max(1e-300);
             let (w, rest) = mesh.split_edge(edge, t.clamp(0.0, 1.0)).map_err(e)?;
-            mesh.set_position(w, plan.position);
-            refresh_around(mesh, w);
+            mesh.move_vert(w, plan.position);
             new_node(mesh, w, plan, generation);
             // (n0, n2) follows the parameters; (n2, n1) keeps the old left.
             new_edge(mesh, edge, plan.heading, plan.left, generation);
@@ -324,8 +323,7 @@ pub fn apply(
         }
         CommandKind::EditNode => {
             let v = VertId::from_index(plan.target());
-            mesh.set_position(v, plan.position);
-            refresh_around(mesh, v);
+            mesh.move_vert(v, plan.position);
             if let Some(r) = plan.radius() {
                 graph::set_radius(mesh, v, r);
             }
@@ -444,13 +442,6 @@ fn new_node(mesh: &mut Mesh, v: VertId, plan: &Plan, generation: u32) {
 fn new_edge(mesh: &mut Mesh, e: EdgeId, heading: DVec3, left: DVec3, generation: u32) {
     graph::set_heading_left(mesh, Domain::Edge, e.index(), heading, left);
     graph::set_age(mesh, Domain::Edge, e.index(), generation);
-}
-
-fn refresh_around(mesh: &mut Mesh, v: VertId) {
-    let faces: Vec<FaceId> = mesh.vert_faces(v).collect();
-    for f in faces {
-        mesh.refresh_normal(f);
-    }
 }
 
 /// Running a G³ command step: plan on Gₙ, apply in canonical order (or

@@ -114,12 +114,8 @@ fn average_nodes(mesh: &mut Mesh, clusters: &[Cluster]) {
         let n = (c.gone.len() + 1) as f64;
         let position = members().map(|v| mesh.position(v)).sum::<DVec3>() / n;
         let radius = members().map(|v| graph::radius(mesh, v)).sum::<f64>() / n;
-        mesh.set_position(c.keep, position);
+        mesh.move_vert(c.keep, position);
         graph::set_radius(mesh, c.keep, radius);
-        let faces: Vec<_> = mesh.vert_faces(c.keep).collect();
-        for f in faces {
-            mesh.refresh_normal(f);
-        }
     }
 }
 
@@ -265,7 +261,7 @@ mod tests {
         let c = mesh.make_vert(DVec3::new(1.0, 1.0, 0.0));
         mesh.make_face(&[a, b, c]).unwrap();
         mesh.make_vert(d);
-        mesh.set_position(c, d);
+        mesh.move_vert(c, d);
         let mut made = Selection::default();
         made.verts.push(c);
         let merged = Merger::new()

@@ -654,6 +654,8 @@ impl Mesh {
             self.loop_mut(next).prev = inserted;
             self.face_mut(face).len += 1;
         }
+        // A corner more changes the faces' Newell sums in the last bits.
+        self.refresh_faces_around(w);
         Ok((w, e2))
     }
 
@@ -768,7 +770,7 @@ impl Mesh {
         self.disk_remove(e, b);
         self.edges.remove(e.raw());
         self.merge_vert_into(keep, gone);
-        self.set_position(keep, position);
+        self.place(keep, position);
         if normals == Normals::Refresh {
             self.refresh_faces_around(keep);
         }
@@ -915,13 +917,6 @@ impl Mesh {
             }
         }
         self.verts.remove(gone.raw());
-    }
-
-    fn refresh_faces_around(&mut self, v: VertId) {
-        let faces: Vec<FaceId> = self.vert_faces(v).collect();
-        for f in faces {
-            self.refresh_normal(f);
-        }
     }
 
     /// Swaps the ends of edge `e`: its first vertex becomes its second. Only

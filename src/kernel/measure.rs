@@ -452,7 +452,7 @@ mod tests {
             .unwrap();
         for &v in &ids {
             let p = a.position(v);
-            a.set_position(v, p + DVec3::ONE);
+            a.place(v, p + DVec3::ONE);
         }
         let corner_a = a
             .vert_ids()
@@ -562,7 +562,7 @@ mod tests {
             let b = create::create_cube(m, 1.0).unwrap();
             for v in b.verts {
                 let p = m.position(v);
-                m.set_position(v, p + DVec3::ONE);
+                m.place(v, p + DVec3::ONE);
             }
             m.make_vert(DVec3::splat(9.0));
         });

@@ -172,14 +172,48 @@ impl Mesh {
         self.vert(v).position
     }
 
-    /// Moves a vertex. Geometry only: adjacency is untouched. Stored face
-    /// normals are refreshed by [`Mesh::refresh_normals`].
+    /// Moves a vertex; the stored normals of the faces around it follow.
+    /// Stored normals are fresh by construction (the validator checks it
+    /// bit for bit), so no reader ever recomputes one. Panics on a dead id.
+    pub fn move_vert(&mut self, v: VertId, position: DVec3) {
+        self.place(v, position);
+        self.refresh_faces_around(v);
+    }
+
+    /// Moves many vertices; each face around them gets its normal once,
+    /// from the final positions.
+    pub fn move_verts(&mut self, moves: &[(VertId, DVec3)]) {
+        for &(v, p) in moves {
+            self.place(v, p);
+        }
+        let mut faces: Vec<FaceId> = moves
+            .iter()
+            .flat_map(|&(v, _)| self.vert_faces(v))
+            .collect();
+        faces.sort_unstable();
+        faces.dedup();
+        for f in faces {
+            self.refresh_normal(f);
+        }
+    }
+
+    /// Moves a vertex and leaves the stored normals around it to the
+    /// caller: a kernel operator that moves many corners refreshes every
+    /// face it touched, once, before it returns.
     #[inline]
-    pub fn set_position(&mut self, v: VertId, position: DVec3) {
+    pub(in crate::kernel) fn place(&mut self, v: VertId, position: DVec3) {
         self.verts
             .get_mut(v.raw())
             .expect("dead vertex id")
             .position = position;
+    }
+
+    /// Refreshes the stored normal of every face around `v`.
+    pub(in crate::kernel) fn refresh_faces_around(&mut self, v: VertId) {
+        let faces: Vec<FaceId> = self.vert_faces(v).collect();
+        for f in faces {
+            self.refresh_normal(f);
+        }
     }
 
     /// Stored unit normal of a face (Newell normal at creation or last refresh;

@@ -12,7 +12,8 @@
 //!   radial cycle of its edge;
 //! - faces: one boundary cycle of `len >= 3` loops, consistent both ways,
 //!   each loop's face is the face, loop `i`'s edge joins its vertex to loop
-//!   `i+1`'s, and no vertex repeats;
+//!   `i+1`'s, no vertex repeats, and the stored normal is the one its
+//!   corners give now (bit for bit);
 //! - free slots hold no element; attribute layers cover every slot.
 //!
 //! Walks are bounded by element counts, so a corrupt cycle cannot hang it.
@@ -34,6 +35,10 @@ macro_rules! ensure {
             return Err(ValidationError(format!($($fmt)+)));
         }
     };
+}
+
+fn bits(v: glam::DVec3) -> [u64; 3] {
+    v.to_array().map(f64::to_bits)
 }
 
 impl Mesh {
@@ -248,6 +253,16 @@ impl Mesh {
                 l == face.first_loop,
                 "boundary of {f} does not close after {} loops",
                 face.len
+            );
+            // Stored normals are fresh by construction: every operator that
+            // moves a corner or reshapes a face refreshes them, so readers
+            // (writers, extrusion, the intersection tests) never recompute.
+            let fresh = self.compute_face_normal(f);
+            ensure!(
+                bits(face.normal) == bits(fresh),
+                "{f}'s stored normal {} is stale (its corners give {})",
+                face.normal,
+                fresh
             );
             seen.sort_unstable();
             if let Some(w) = seen.windows(2).find(|w| w[0] == w[1]) {

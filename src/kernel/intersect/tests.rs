@@ -565,7 +565,7 @@ fn cube_with_a_corner_pushed_through() {
         .vert_ids()
         .find(|&v| m.position(v) == DVec3::splat(0.5))
         .unwrap();
-    m.set_position(corner, p(0.2, 0.2, -0.9));
+    m.place(corner, p(0.2, 0.2, -0.9));
     let pairs = self_intersections(&m);
     assert!(!pairs.is_empty());
     // The bottom face (-Z) is pierced by faces that used the corner.
@@ -591,7 +591,7 @@ fn two_joined_interpenetrating_cubes() {
     let second: Vec<VertId> = map.verts.iter().flatten().copied().collect();
     for &v in &second {
         let q = m.position(v);
-        m.set_position(v, q + DVec3::splat(0.5));
+        m.place(v, q + DVec3::splat(0.5));
     }
     // Each of the first cube's +X, +Y, +Z faces crosses two of the second
     // cube's -X, -Y, -Z faces (the perpendicular ones).
@@ -615,7 +615,7 @@ fn flat_fold_is_an_intersection() {
     let f0 = m.make_face(&[u, w, a]).unwrap();
     let f1 = m.make_face(&[w, u, b]).unwrap();
     assert_eq!(self_intersections(&m), vec![(f0, f1)]);
-    m.set_position(b, p(0.5, -0.5, 0.0));
+    m.place(b, p(0.5, -0.5, 0.0));
     assert!(self_intersections(&m).is_empty());
 }
 
@@ -699,7 +699,7 @@ fn large_meshes_on_several_threads() {
     });
     for v in map.verts.iter().flatten() {
         let q = m.position(*v);
-        m.set_position(*v, q + DVec3::new(1.0, 0.25, 0.125));
+        m.place(*v, q + DVec3::new(1.0, 0.25, 0.125));
     }
     let items = mesh_items(&m, None);
     assert!(items.len() >= super::bvh::PARALLEL_ITEMS);
@@ -835,7 +835,7 @@ fn index_removed_elements_keep_only_their_new_shape() {
     // The face lifted by 1 and stored again: only its new shape counts,
     // and removing it again takes that one out too.
     for v in m.face_verts(f).collect::<Vec<_>>() {
-        m.set_position(v, m.position(v) + DVec3::Z);
+        m.place(v, m.position(v) + DVec3::Z);
     }
     index.insert_face(&m, f);
     assert!(through(&index, 1.0) && !through(&index, 0.0));
@@ -1096,7 +1096,7 @@ fn bumpy_grid_strategy() -> impl Strategy<Value = Mesh> {
             for (v, (z, x, y)) in verts.into_iter().zip(jitter) {
                 let q = m.position(v);
                 let d = DVec3::new(f64::from(x) * 0.25, f64::from(y) * 0.25, f64::from(z) * 0.5);
-                m.set_position(v, q + d);
+                m.place(v, q + d);
             }
             m
         })
@@ -1137,7 +1137,7 @@ fn crossing_shells() -> crate::geom::IndexedMesh {
     let sheet = create::create_grid(&mut m, 20, 20, 3.0, 3.0).unwrap();
     for &v in &sheet.verts {
         let q = m.position(v);
-        m.set_position(v, q + p(0.0, 0.0, 0.05 * (3.0 * q.x).sin()));
+        m.place(v, q + p(0.0, 0.0, 0.05 * (3.0 * q.x).sin()));
     }
     m.to_indexed()
 }
@@ -1303,7 +1303,7 @@ fn jittered_sphere_strategy() -> impl Strategy<Value = Mesh> {
         assert_eq!(verts.len(), jitter.len());
         for (v, (x, y, z)) in verts.into_iter().zip(jitter) {
             let d = DVec3::new(f64::from(x), f64::from(y), f64::from(z)) * 0.1;
-            m.set_position(v, m.position(v) + d);
+            m.place(v, m.position(v) + d);
         }
         m
     })

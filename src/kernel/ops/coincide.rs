@@ -240,7 +240,7 @@ mod tests {
         grid.near(&mesh, DVec3::ZERO, 0.1, &mut out);
         assert_eq!(out, vec![a]);
         // Moved: found at the new place once inserted again.
-        mesh.set_position(c, DVec3::new(0.01, 0.0, 0.0));
+        mesh.place(c, DVec3::new(0.01, 0.0, 0.0));
         let mut grid = grid;
         grid.insert(&mesh, c);
         out.clear();
@@ -313,7 +313,7 @@ mod tests {
         // f2: triangle (ni, n_new, a); f1: quad (ni, b, c, n_new) on the other side.
         mesh.make_face(&[ni, n_new, a]).unwrap();
         mesh.make_face(&[ni, b, c, n_new]).unwrap();
-        mesh.set_position(n_new, DVec3::ZERO);
+        mesh.place(n_new, DVec3::ZERO);
         assert_eq!(counts(&mesh), [5, 6, 2]);
         let result = merge_new(&mut mesh, &[n_new]);
         assert_eq!(result.merged, 1);
@@ -345,7 +345,7 @@ mod tests {
         // Ring: 0 → 5 → 4 → 3 → 2 → 1 would cross; use 1,2,3,4,5,0 with 4 near 1.
         mesh.make_face(&[ids[1], ids[2], ids[3], ids[4], ids[5], ids[0]])
             .unwrap();
-        mesh.set_position(ids[4], DVec3::ZERO);
+        mesh.place(ids[4], DVec3::ZERO);
         let result = merge_new(&mut mesh, &[ids[4]]);
         assert_eq!(result.merged, 1);
         // Pieces: (1, 2, 3) and (1, 5, 0).
@@ -375,7 +375,7 @@ mod tests {
         let d = v(&mut mesh, 1.0, 1.0, 0.0);
         let n_new = v(&mut mesh, 0.0, 0.5, 0.0);
         mesh.make_face(&[a, b, ni, c, d, n_new]).unwrap();
-        mesh.set_position(n_new, DVec3::ZERO);
+        mesh.place(n_new, DVec3::ZERO);
         let result = merge_new(&mut mesh, &[n_new]);
         let rings = rings(&mesh);
         assert_eq!(rings, vec![canonical(&[a, b, ni]), canonical(&[ni, c, d])]);
@@ -398,7 +398,7 @@ mod tests {
         mesh.make_face(&[a, n_new, d, c, ni, b]).unwrap();
         // f2 = (a, b, ni) seen from the other side: a duplicate of a piece.
         let f2 = mesh.make_face(&[a, b, ni]).unwrap();
-        mesh.set_position(n_new, mesh.position(ni));
+        mesh.place(n_new, mesh.position(ni));
         let result = merge_new(&mut mesh, &[n_new]);
         assert!(mesh.contains_face(f2), "the untouched face is kept");
         let rings = rings(&mesh);

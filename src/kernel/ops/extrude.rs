@@ -567,7 +567,7 @@ pub(crate) mod tests {
         let mut m = Mesh::new();
         let translate = |m: &mut Mesh, verts: &[VertId], by: DVec3| {
             for &v in verts {
-                m.set_position(v, m.position(v) + by);
+                m.place(v, m.position(v) + by);
             }
             m.refresh_normals();
         };

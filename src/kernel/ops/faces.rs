@@ -666,7 +666,7 @@ mod tests {
         let second = m.join_mesh(&cube());
         let second: Vec<FaceId> = second.faces.iter().flatten().copied().collect();
         for v in m.vert_ids().collect::<Vec<_>>().into_iter().skip(8) {
-            m.set_position(v, m.position(v) + DVec3::new(100.0, 0.0, 0.0));
+            m.place(v, m.position(v) + DVec3::new(100.0, 0.0, 0.0));
         }
         reverse_faces(&mut m, &second).unwrap();
         let all: Vec<FaceId> = m.face_ids().collect();
@@ -693,7 +693,7 @@ mod tests {
 
         // Without `outside`, only stale normals are refreshed.
         let mut m = grid(1, 1, 1.0);
-        m.set_position(VertId::from_raw(3), DVec3::new(0.5, 0.5, 1.0));
+        m.place(VertId::from_raw(3), DVec3::new(0.5, 0.5, 1.0));
         let stale = m.face_normal(FaceId::from_raw(0));
         let r = recompute_normals(&mut m, &[FaceId::from_raw(0)], false).unwrap();
         assert!(r.is_empty());

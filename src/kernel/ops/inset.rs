@@ -451,7 +451,7 @@ pub fn inset_region(
             result.verts.push(w);
             result.edges.push(spoke);
         } else {
-            mesh.set_position(v, p);
+            mesh.place(v, p);
         }
     }
     // Interior vertices are their own inner vertex.
@@ -745,7 +745,7 @@ mod tests {
             } else {
                 0.2 * (p.x * 1.3).sin() * (p.y * 0.7).cos()
             };
-            m.set_position(v, DVec3::new(if p.x == 0.0 { -0.0 } else { p.x }, p.y, z));
+            m.place(v, DVec3::new(if p.x == 0.0 { -0.0 } else { p.x }, p.y, z));
         }
         m.refresh_normals();
         let before: Vec<DVec3> = verts.iter().map(|&v| m.position(v)).collect();

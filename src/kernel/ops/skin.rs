@@ -144,7 +144,7 @@ pub fn skin_wire_edges(mesh: &Mesh, options: &SkinOptions) -> Result<Mesh, OpErr
         let sphere = create_uv_sphere(&mut out, options.sides, rings, radius)?;
         let center = mesh.position(v);
         for &w in &sphere.verts {
-            out.set_position(w, turn * out.position(w) + center);
+            out.place(w, turn * out.position(w) + center);
             if copy_radius {
                 set_radius(&mut out, w, radius);
             }

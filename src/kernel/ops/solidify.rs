@@ -161,8 +161,8 @@ pub fn solidify(
     for &v in &verts {
         let along = normal[&v] * factor[&v];
         let p = mesh.position(v);
-        mesh.set_position(copy_of[&v], p + along * at_copy);
-        mesh.set_position(v, p + along * at_original);
+        mesh.place(copy_of[&v], p + along * at_copy);
+        mesh.place(v, p + along * at_original);
     }
     let mut touched: Vec<FaceId> = verts
         .iter()
@@ -357,7 +357,7 @@ mod tests {
         let (mut mesh, faces) = grid();
         for v in mesh.vert_ids().collect::<Vec<_>>() {
             let p = mesh.position(v);
-            mesh.set_position(v, p + DVec3::Z * 1e308);
+            mesh.place(v, p + DVec3::Z * 1e308);
         }
         let err = solidify(&mut mesh, &faces, options(1e308, 1.0)).unwrap_err();
         assert!(err.to_string().contains("overflows"), "{err}");

@@ -75,7 +75,7 @@ fn split_with(
         for k in 0..count {
             let r = ratio(k);
             let (vert, rest) = mesh.split_edge(piece, (r - done) / (1.0 - done))?;
-            mesh.set_position(vert, from.lerp(to, r));
+            mesh.move_vert(vert, from.lerp(to, r));
             result.verts.push(vert);
             result.edges.push(rest);
             piece = rest;

@@ -331,7 +331,7 @@ fn refine(
     let mut midpoints: FxHashSet<VertId> = FxHashSet::default();
     for &e in &edges {
         let (m, rest) = mesh.split_edge(e, 0.5)?;
-        mesh.set_position(m, edge_point[&e]);
+        mesh.place(m, edge_point[&e]);
         new_verts.push(m);
         new_edges.push(rest);
         midpoints.insert(m);
@@ -369,7 +369,7 @@ fn refine(
                 // becomes the face point; then one quad per other midpoint.
                 let (mut rest, diagonal) = mesh.split_face(f, mids[0], mids[1])?;
                 let (centre, half) = mesh.split_edge(diagonal, 0.5)?;
-                mesh.set_position(centre, face_point[&f]);
+                mesh.place(centre, face_point[&f]);
                 new_verts.push(centre);
                 new_edges.extend([diagonal, half]);
                 for &m in &mids[2..] {
@@ -386,7 +386,7 @@ fn refine(
     // 3. The cage's vertices move last (the edge and face points above
     // were computed from their old positions).
     for (&v, &p) in &vert_point {
-        mesh.set_position(v, p);
+        mesh.place(v, p);
     }
     let mut touched: Vec<FaceId> = verts
         .iter()

@@ -106,7 +106,7 @@ fn apply(mesh: &mut Mesh, verts: &[VertId], map: impl Fn(DVec3) -> DVec3) -> Res
         moved.push(p);
     }
     for (&v, &p) in verts.iter().zip(&moved) {
-        mesh.set_position(v, p);
+        mesh.place(v, p);
     }
     let mut faces: Vec<FaceId> = verts.iter().flat_map(|&v| mesh.vert_faces(v)).collect();
     faces.sort_unstable();

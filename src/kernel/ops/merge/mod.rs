@@ -149,7 +149,7 @@ pub fn mirror(
     let dup = duplicate_mapped(mesh, selection, false)?;
     for &(_, copy) in &dup.vert_pairs {
         let p = mesh.position(copy);
-        mesh.set_position(copy, reflect(p));
+        mesh.place(copy, reflect(p));
     }
     for &f in &dup.copies.faces {
         // Also refreshes the stored normal from the reflected positions.
