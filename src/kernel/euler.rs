@@ -546,7 +546,7 @@ impl Mesh {
 
     /// The topology of [`Mesh::split_face`]; both pieces' stored normals
     /// are left for the caller to refresh.
-    fn split_face_unrefreshed(
+    pub(in crate::kernel) fn split_face_unrefreshed(
         &mut self,
         f: FaceId,
         a: VertId,
@@ -614,6 +614,20 @@ impl Mesh {
     /// (w, v1). Faces using `e` gain the new vertex. `w` interpolates the
     /// vertex attributes of v0 and v1; the new edge copies `e`'s.
     pub fn split_edge(&mut self, e: EdgeId, t: f64) -> Result<(VertId, EdgeId), KernelError> {
+        let (w, e2) = self.split_edge_unrefreshed(e, t)?;
+        // A corner more changes the faces' Newell sums in the last bits.
+        self.refresh_faces_around(w);
+        Ok((w, e2))
+    }
+
+    /// [`Mesh::split_edge`] leaving the stored normals of the edge's faces
+    /// to the caller (an operator that refreshes every face it touched,
+    /// once, before it returns).
+    pub(in crate::kernel) fn split_edge_unrefreshed(
+        &mut self,
+        e: EdgeId,
+        t: f64,
+    ) -> Result<(VertId, EdgeId), KernelError> {
         self.check_edge(e)?;
         if !t.is_finite() {
             return Err(KernelError::NonFinite);
@@ -654,8 +668,6 @@ impl Mesh {
             self.loop_mut(next).prev = inserted;
             self.face_mut(face).len += 1;
         }
-        // A corner more changes the faces' Newell sums in the last bits.
-        self.refresh_faces_around(w);
         Ok((w, e2))
     }
 

@@ -238,6 +238,21 @@ impl Mesh {
         self.faces.reserve(faces);
     }
 
+    /// Recomputes the stored normals of `faces` (live), computed in
+    /// parallel: each is a pure function of its corners.
+    pub(in crate::kernel) fn refresh_normals_of(&mut self, faces: &[FaceId]) {
+        use rayon::prelude::*;
+        let view: &Mesh = self;
+        let normals: Vec<DVec3> = faces
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&f| view.compute_face_normal(f))
+            .collect();
+        for (&f, normal) in faces.iter().zip(normals) {
+            self.faces.get_mut(f.raw()).expect("dead face id").normal = normal;
+        }
+    }
+
     /// Recomputes every stored face normal.
     pub fn refresh_normals(&mut self) {
         let ids: Vec<FaceId> = self.face_ids().collect();

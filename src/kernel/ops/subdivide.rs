@@ -30,8 +30,10 @@
 //! became smooth (Sdc `Crease::ComputeFractionalWeightAtVertex`).
 
 use glam::DVec3;
-use rustc_hash::{FxHashMap, FxHashSet};
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 
+use super::side_table::{SideTable, SlotSet};
 use super::{canonical, OpError, Selection};
 use crate::kernel::{EdgeId, FaceId, Mesh, VertId};
 
@@ -168,11 +170,14 @@ pub fn subdivide(
         })
         .collect();
     if let Some(angle) = options.crease_angle {
-        let in_region: FxHashSet<FaceId> = region.iter().copied().collect();
+        let mut in_region = SlotSet::new(region.len(), mesh.face_capacity());
+        for f in &region {
+            in_region.insert(f.index());
+        }
         let cos_limit = libm::cos(angle.to_radians());
         for &f in &region {
             for e in mesh.face_edges(f) {
-                if let [a, b] = region_faces(mesh, e, &in_region)[..] {
+                if let Some([a, b]) = region_pair(mesh, e, &in_region) {
                     if mesh.face_normal(a).dot(mesh.face_normal(b)) < cos_limit {
                         sharp.entry(e).or_insert((0.0, 0.0)).0 = INFINITE;
                     }
@@ -242,6 +247,29 @@ const INFINITE: f64 = f64::INFINITY;
 /// `Crease::SHARPNESS_INFINITE`; Blender's crease 1.0 maps to it).
 pub const SHARPNESS_INFINITE: f64 = 10.0;
 
+/// What one level reads of its cage, slot-indexed: membership and values
+/// an edge or vertex rule looks up for every corner around it are a load,
+/// not a hash probe.
+struct Cage {
+    in_region: SlotSet,
+    /// Effective sharpness of each region edge.
+    sharpness: SideTable<f64>,
+    face_point: SideTable<DVec3>,
+}
+
+impl Cage {
+    fn sharpness(&self, e: EdgeId) -> Option<f64> {
+        self.sharpness.get(e.index()).copied()
+    }
+
+    fn face_point(&self, f: FaceId) -> DVec3 {
+        self.face_point
+            .get(f.index())
+            .copied()
+            .unwrap_or(DVec3::ZERO)
+    }
+}
+
 /// One level of refinement of `region` (canonical order).
 fn refine(
     mesh: &mut Mesh,
@@ -249,7 +277,10 @@ fn refine(
     options: Subdivision,
     sharp: &FxHashMap<EdgeId, (f64, f64)>,
 ) -> Result<Level, OpError> {
-    let in_region: FxHashSet<FaceId> = region.iter().copied().collect();
+    let mut in_region = SlotSet::new(region.len(), mesh.face_capacity());
+    for f in region {
+        in_region.insert(f.index());
+    }
     // The region's edges and vertices, in canonical order.
     let mut edges: Vec<EdgeId> = region.iter().flat_map(|&f| mesh.face_edges(f)).collect();
     edges = super::into_canonical(edges);
@@ -258,64 +289,47 @@ fn refine(
 
     // Effective sharpness: boundary and non-manifold edges are infinitely
     // sharp (Sdc treats both as creases).
-    let edge_sharpness: FxHashMap<EdgeId, f64> = edges
-        .iter()
-        .map(|&e| {
-            let s = if mesh.edge_face_count(e) == 0 || region_faces(mesh, e, &in_region).len() != 2
-            {
-                INFINITE
-            } else {
-                sharp.get(&e).map_or(0.0, |s| s.0)
-            };
-            (e, s)
+    let mut sharpness = SideTable::new(edges.len(), mesh.edge_capacity());
+    for &e in &edges {
+        let s = if mesh.edge_face_count(e) == 0 || region_pair(mesh, e, &in_region).is_none() {
+            INFINITE
+        } else {
+            sharp.get(&e).map_or(0.0, |s| s.0)
+        };
+        sharpness.insert(e.index(), s);
+    }
+
+    // 1. New positions from the cage: each a pure function of the cage,
+    // computed in parallel and collected in canonical order.
+    let view: &Mesh = mesh;
+    let centres: Vec<DVec3> = region.par_iter().map(|&f| view.face_center(f)).collect();
+    let mut face_point = SideTable::new(region.len(), view.face_capacity());
+    for (&f, &p) in region.iter().zip(&centres) {
+        face_point.insert(f.index(), p);
+    }
+    let cage = Cage {
+        in_region,
+        sharpness,
+        face_point,
+    };
+    let edge_points: Vec<DVec3> = edges
+        .par_iter()
+        .map(|&e| edge_point(view, e, options, &cage))
+        .collect();
+    let vert_points: Vec<DVec3> = verts
+        .par_iter()
+        .map(|&v| match options.scheme {
+            Scheme::Simple => view.position(v),
+            _ => vertex_point(view, v, options, &cage),
         })
         .collect();
 
-    // 1. New positions from the cage.
-    let face_point: FxHashMap<FaceId, DVec3> =
-        region.iter().map(|&f| (f, mesh.face_center(f))).collect();
-    let mut edge_point: FxHashMap<EdgeId, DVec3> = FxHashMap::default();
-    for &e in &edges {
-        let [a, b] = mesh.edge_verts(e);
-        let (pa, pb) = (mesh.position(a), mesh.position(b));
-        let mid = (pa + pb) * 0.5;
-        let s = edge_sharpness[&e];
-        let point = match options.scheme {
-            Scheme::Simple => mid,
-            _ if s >= 1.0 => mid,
-            Scheme::CatmullClark => {
-                let fs = region_faces(mesh, e, &in_region);
-                let smooth = (pa + pb + face_point[&fs[0]] + face_point[&fs[1]]) * 0.25;
-                smooth.lerp(mid, s)
-            }
-            Scheme::Loop => {
-                let fs = region_faces(mesh, e, &in_region);
-                let opposite = |f: FaceId| {
-                    mesh.face_verts(f)
-                        .find(|&v| v != a && v != b)
-                        .map_or(mid, |v| mesh.position(v))
-                };
-                let smooth = (pa + pb) * 0.375 + (opposite(fs[0]) + opposite(fs[1])) * 0.125;
-                smooth.lerp(mid, s)
-            }
-        };
-        edge_point.insert(e, point);
-    }
-    let mut vert_point: FxHashMap<VertId, DVec3> = FxHashMap::default();
-    for &v in &verts {
-        let point = match options.scheme {
-            Scheme::Simple => mesh.position(v),
-            _ => vertex_point(mesh, v, options, &in_region, &edge_sharpness, &face_point),
-        };
-        vert_point.insert(v, point);
-    }
-
     // Coordinates near the f64 limit can overflow in the sums: refuse
     // before anything is made.
-    if edge_point
-        .values()
-        .chain(vert_point.values())
-        .chain(face_point.values())
+    if edge_points
+        .iter()
+        .chain(&vert_points)
+        .chain(&centres)
         .any(|p| !p.is_finite())
     {
         return Err(OpError::Degenerate(
@@ -324,17 +338,18 @@ fn refine(
     }
 
     // 2. Topology. Every region edge split at its middle; the children
-    // inherit the sharpness less one.
+    // inherit the sharpness less one. Stored normals are refreshed once,
+    // at the end, from the final positions.
     let mut new_verts = Vec::with_capacity(edges.len() + region.len());
     let mut new_edges = Vec::new();
     let mut child_sharp: FxHashMap<EdgeId, (f64, f64)> = FxHashMap::default();
-    let mut midpoints: FxHashSet<VertId> = FxHashSet::default();
-    for &e in &edges {
-        let (m, rest) = mesh.split_edge(e, 0.5)?;
-        mesh.place(m, edge_point[&e]);
+    let mut midpoints = SlotSet::new(edges.len(), mesh.vert_capacity() + edges.len());
+    for (&e, &point) in edges.iter().zip(&edge_points) {
+        let (m, rest) = mesh.split_edge_unrefreshed(e, 0.5)?;
+        mesh.place(m, point);
         new_verts.push(m);
         new_edges.push(rest);
-        midpoints.insert(m);
+        midpoints.insert(m.index());
         if let Some(&(s, stored)) = sharp.get(&e) {
             if s - 1.0 > 0.0 || stored - 1.0 > 0.0 {
                 let child = ((s - 1.0).max(0.0), (stored - 1.0).max(0.0));
@@ -344,36 +359,33 @@ fn refine(
         }
     }
     let mut faces = Vec::with_capacity(region.len() * 4);
-    for &f in region {
+    let mut mids: Vec<VertId> = Vec::new();
+    for (&f, &centre_point) in region.iter().zip(&centres) {
         // The face's midpoints, in winding order from its first corner:
         // its ring alternates corner, midpoint.
-        let ring: Vec<VertId> = mesh.face_verts(f).collect();
-        let mids: Vec<VertId> = ring
-            .iter()
-            .copied()
-            .filter(|v| midpoints.contains(v))
-            .collect();
-        debug_assert_eq!(mids.len() * 2, ring.len());
+        mids.clear();
+        mids.extend(mesh.face_verts(f).filter(|v| midpoints.contains(v.index())));
+        debug_assert_eq!(mids.len() * 2, mesh.face_len(f));
         faces.push(f);
         match options.scheme {
             Scheme::Loop => {
                 // Cut the three corners off; `f` keeps the first.
-                let (rest, e0) = mesh.split_face(f, mids[0], mids[1])?;
-                let (rest2, e1) = mesh.split_face(rest, mids[1], mids[2])?;
-                let (centre, e2) = mesh.split_face(rest2, mids[2], mids[0])?;
+                let (rest, e0) = mesh.split_face_unrefreshed(f, mids[0], mids[1])?;
+                let (rest2, e1) = mesh.split_face_unrefreshed(rest, mids[1], mids[2])?;
+                let (centre, e2) = mesh.split_face_unrefreshed(rest2, mids[2], mids[0])?;
                 new_edges.extend([e0, e1, e2]);
                 faces.extend([rest, rest2, centre]);
             }
             _ => {
                 // The first quad is cut off along a diagonal whose middle
                 // becomes the face point; then one quad per other midpoint.
-                let (mut rest, diagonal) = mesh.split_face(f, mids[0], mids[1])?;
-                let (centre, half) = mesh.split_edge(diagonal, 0.5)?;
-                mesh.place(centre, face_point[&f]);
+                let (mut rest, diagonal) = mesh.split_face_unrefreshed(f, mids[0], mids[1])?;
+                let (centre, half) = mesh.split_edge_unrefreshed(diagonal, 0.5)?;
+                mesh.place(centre, centre_point);
                 new_verts.push(centre);
                 new_edges.extend([diagonal, half]);
                 for &m in &mids[2..] {
-                    let (next, spoke) = mesh.split_face(rest, centre, m)?;
+                    let (next, spoke) = mesh.split_face_unrefreshed(rest, centre, m)?;
                     faces.push(rest);
                     new_edges.push(spoke);
                     rest = next;
@@ -385,24 +397,66 @@ fn refine(
 
     // 3. The cage's vertices move last (the edge and face points above
     // were computed from their old positions).
-    for (&v, &p) in &vert_point {
+    for (&v, &p) in verts.iter().zip(&vert_points) {
         mesh.place(v, p);
     }
-    let mut touched: Vec<FaceId> = verts
-        .iter()
-        .chain(new_verts.iter())
-        .flat_map(|&v| mesh.vert_faces(v).collect::<Vec<_>>())
-        .collect();
-    touched = super::into_canonical(touched);
-    for f in touched {
-        mesh.refresh_normal(f);
+    // Every new region face changed; so did each face outside the region
+    // that holds a moved cage vertex or a new midpoint. Only vertices with
+    // a face outside the region are walked for those.
+    let faces = super::into_canonical(faces);
+    let mut in_refined = SlotSet::new(faces.len(), mesh.face_capacity());
+    for f in &faces {
+        in_refined.insert(f.index());
     }
+    let view: &Mesh = mesh;
+    let mut touched: Vec<FaceId> = verts
+        .par_iter()
+        .chain(new_verts.par_iter())
+        .flat_map_iter(|&v| {
+            view.vert_faces(v)
+                .filter(|f| !in_refined.contains(f.index()))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    touched.extend_from_slice(&faces);
+    mesh.refresh_normals_of(&super::into_canonical(touched));
     Ok(Level {
-        faces: super::into_canonical(faces),
+        faces,
         new_verts,
         new_edges,
         sharp: child_sharp,
     })
+}
+
+/// The edge point of region edge `e` (its midpoint where sharp).
+fn edge_point(mesh: &Mesh, e: EdgeId, options: Subdivision, cage: &Cage) -> DVec3 {
+    let [a, b] = mesh.edge_verts(e);
+    let (pa, pb) = (mesh.position(a), mesh.position(b));
+    let mid = (pa + pb) * 0.5;
+    let s = cage.sharpness(e).unwrap_or(INFINITE);
+    match options.scheme {
+        Scheme::Simple => mid,
+        _ if s >= 1.0 => mid,
+        Scheme::CatmullClark => {
+            let Some([f0, f1]) = region_pair(mesh, e, &cage.in_region) else {
+                return mid;
+            };
+            let smooth = (pa + pb + cage.face_point(f0) + cage.face_point(f1)) * 0.25;
+            smooth.lerp(mid, s)
+        }
+        Scheme::Loop => {
+            let Some([f0, f1]) = region_pair(mesh, e, &cage.in_region) else {
+                return mid;
+            };
+            let opposite = |f: FaceId| {
+                mesh.face_verts(f)
+                    .find(|&v| v != a && v != b)
+                    .map_or(mid, |v| mesh.position(v))
+            };
+            let smooth = (pa + pb) * 0.375 + (opposite(f0) + opposite(f1)) * 0.125;
+            smooth.lerp(mid, s)
+        }
+    }
 }
 
 /// A vertex's rule (Sdc `Crease::Rule`).
@@ -424,39 +478,36 @@ fn rule_of(sharp_edges: usize, corner: bool) -> Rule {
 }
 
 /// The refined position of cage vertex `v` (Catmull–Clark or Loop).
-fn vertex_point(
-    mesh: &Mesh,
-    v: VertId,
-    options: Subdivision,
-    in_region: &FxHashSet<FaceId>,
-    edge_sharpness: &FxHashMap<EdgeId, f64>,
-    face_point: &FxHashMap<FaceId, DVec3>,
-) -> DVec3 {
+fn vertex_point(mesh: &Mesh, v: VertId, options: Subdivision, cage: &Cage) -> DVec3 {
     let p = mesh.position(v);
     // The region's edges and faces around `v`, in canonical order (sums
     // in a fixed order: the same bits on every run).
     let mut edges: Vec<EdgeId> = mesh
         .vert_edges(v)
-        .filter(|e| edge_sharpness.contains_key(e))
+        .filter(|&e| cage.sharpness(e).is_some())
         .collect();
     edges.sort_unstable();
     let mut faces: Vec<FaceId> = mesh
         .vert_faces(v)
-        .filter(|f| in_region.contains(f))
+        .filter(|f| cage.in_region.contains(f.index()))
         .collect();
     faces.sort_unstable();
     faces.dedup();
-    let sharpness: Vec<f64> = edges.iter().map(|e| edge_sharpness[e]).collect();
+    let sharpness: Vec<f64> = edges
+        .iter()
+        .map(|&e| cage.sharpness(e).unwrap_or(INFINITE))
+        .collect();
     let boundary_edges = edges
         .iter()
-        .filter(|&&e| edge_sharpness[&e] == INFINITE && region_faces(mesh, e, in_region).len() != 2)
+        .zip(&sharpness)
+        .filter(|&(&e, &s)| s == INFINITE && region_pair(mesh, e, &cage.in_region).is_none())
         .count();
     // A boundary vertex of one face is a corner under EDGE_AND_CORNER; so
     // is a vertex where fans of faces meet only at the vertex (two cones
     // apex to apex), as OpenSubdiv makes non-manifold vertices.
     let corner =
         (options.boundary == Boundary::KeepCorners && boundary_edges > 0 && faces.len() == 1)
-            || fans(mesh, v, &faces, in_region) > 1;
+            || fans(mesh, v, &faces, &cage.in_region) > 1;
     let parent = rule_of(sharpness.iter().filter(|&&s| s > 0.0).count(), corner);
     let child = rule_of(sharpness.iter().filter(|&&s| s - 1.0 > 0.0).count(), corner);
 
@@ -488,7 +539,7 @@ fn vertex_point(
                         p * (1.0 - n * beta) + ring * beta
                     }
                     _ => {
-                        let centres: DVec3 = faces.iter().map(|f| face_point[f]).sum();
+                        let centres: DVec3 = faces.iter().map(|&f| cage.face_point(f)).sum();
                         (p * (n - 2.0) + ring / n + centres / n) / n
                     }
                 }
@@ -515,14 +566,14 @@ fn vertex_point(
 /// How many fans of `faces` (the region's faces at `v`) are joined
 /// through `v`'s edges that have two region faces: one on a manifold
 /// vertex, more where surfaces touch only at `v`.
-fn fans(mesh: &Mesh, v: VertId, faces: &[FaceId], in_region: &FxHashSet<FaceId>) -> usize {
+fn fans(mesh: &Mesh, v: VertId, faces: &[FaceId], in_region: &SlotSet) -> usize {
     if faces.len() <= 1 {
         return faces.len();
     }
     let mut groups = crate::geom::union_find::UnionFind::new(faces.len());
     let at = |f: FaceId| faces.binary_search(&f).ok();
     for e in mesh.vert_edges(v) {
-        if let [a, b] = region_faces(mesh, e, in_region)[..] {
+        if let Some([a, b]) = region_pair(mesh, e, in_region) {
             if let (Some(i), Some(j)) = (at(a), at(b)) {
                 groups.union(i as u32, j as u32);
             }
@@ -534,15 +585,22 @@ fn fans(mesh: &Mesh, v: VertId, faces: &[FaceId], in_region: &FxHashSet<FaceId>)
     roots.len()
 }
 
-/// The region's faces on edge `e`, ascending.
-fn region_faces(mesh: &Mesh, e: EdgeId, in_region: &FxHashSet<FaceId>) -> Vec<FaceId> {
-    let mut faces: Vec<FaceId> = mesh
-        .edge_faces(e)
-        .filter(|f| in_region.contains(f))
-        .collect();
-    faces.sort_unstable();
-    faces.dedup();
-    faces
+/// The region's two faces on edge `e`, ascending; `None` unless there are
+/// exactly two (a boundary or non-manifold edge of the region).
+fn region_pair(mesh: &Mesh, e: EdgeId, in_region: &SlotSet) -> Option<[FaceId; 2]> {
+    let mut pair: [Option<FaceId>; 2] = [None; 2];
+    for f in mesh.edge_faces(e).filter(|f| in_region.contains(f.index())) {
+        match pair {
+            [None, _] => pair[0] = Some(f),
+            [Some(a), None] if a != f => pair[1] = Some(f),
+            [Some(a), Some(b)] if a != f && b != f => return None,
+            _ => {}
+        }
+    }
+    let [Some(a), Some(b)] = pair else {
+        return None;
+    };
+    Some([a.min(b), a.max(b)])
 }
 
 #[cfg(test)]
