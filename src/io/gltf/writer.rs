@@ -84,6 +84,8 @@ pub(super) struct Draw {
     uvs: Vec<[f32; 2]>,
     colors: Vec<[f32; 3]>,
     indices: Vec<u32>,
+    /// Running min/max of `positions` (kept as they are added, while hot).
+    bounds: Bounds,
 }
 
 /// One array of a primitive, in the order the buffer holds them.
@@ -220,7 +222,9 @@ impl Sharing {
         self.next.push(self.head[slot]);
         self.head[slot] = index;
         draw.sources.push(source);
-        draw.positions.push(to_f32(turn_y_up(mesh.positions[slot])));
+        let p = to_f32(turn_y_up(mesh.positions[slot]));
+        draw.bounds.add(p);
+        draw.positions.push(p);
         index
     }
 
@@ -245,6 +249,7 @@ impl Draw {
             uvs: Vec::new(),
             colors: Vec::new(),
             indices: Vec::new(),
+            bounds: Bounds::new(),
         }
     }
 }
@@ -535,8 +540,7 @@ impl Builder {
             };
             let accessor = self.accessor(bytes, n, ComponentType::F32, type_, ArrayBuffer);
             if let Array::Positions = array {
-                let mut bounds = Bounds::new();
-                draw.positions.iter().for_each(|&p| bounds.add(p));
+                let bounds = &draw.bounds;
                 let to_value = |v: [f32; 3]| json::Value::from(v.map(f64::from).to_vec());
                 self.root.accessors[accessor.value()].min = Some(to_value(bounds.min));
                 self.root.accessors[accessor.value()].max = Some(to_value(bounds.max));
