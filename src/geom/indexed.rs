@@ -162,17 +162,29 @@ impl IndexedMesh {
                 self.face_indices.len()
             ));
         }
-        for (k, poly) in self.polygons().enumerate() {
-            if poly.len() < 3 {
-                return invalid(format!(
-                    "polygon {k} has {} vertices (at least 3 required)",
-                    poly.len()
-                ));
-            }
-            if let Some(&v) = poly.iter().find(|&&v| v as usize >= count) {
-                return invalid(format!(
-                    "polygon {k} refers to vertex {v} but only {count} exist"
-                ));
+        // Linear scans first; only a mesh that fails one looks for the first
+        // polygon at fault (to name it).
+        let sizes_ok = starts
+            .windows(2)
+            .fold(true, |ok, w| ok & (w[1] - w[0] >= 3));
+        let indices_ok = self
+            .face_indices
+            .iter()
+            .max()
+            .is_none_or(|&v| (v as usize) < count);
+        if !(sizes_ok && indices_ok) {
+            for (k, poly) in self.polygons().enumerate() {
+                if poly.len() < 3 {
+                    return invalid(format!(
+                        "polygon {k} has {} vertices (at least 3 required)",
+                        poly.len()
+                    ));
+                }
+                if let Some(&v) = poly.iter().find(|&&v| v as usize >= count) {
+                    return invalid(format!(
+                        "polygon {k} refers to vertex {v} but only {count} exist"
+                    ));
+                }
             }
         }
         for (k, line) in self.lines.iter().enumerate() {
@@ -384,16 +396,29 @@ impl IndexedMesh {
     /// two of them in opposite directions (closed, consistently oriented
     /// shells: back faces are never seen), double-sided otherwise.
     pub fn decide_double_sided(&mut self) {
-        for index in 0..self.materials.len() {
+        if self.materials.iter().all(|m| m.double_sided.is_some()) {
+            return;
+        }
+        // The quick test for every material in one pass; only a balanced
+        // one is walked again for the exact test.
+        let mut sums = vec![0u64; self.materials.len()];
+        for (k, poly) in self.polygons().enumerate() {
+            if let Some(m) = self.polygon_material(k) {
+                sums[m as usize] = sums[m as usize].wrapping_add(reversal_sum(poly));
+            }
+        }
+        for (index, sum) in sums.into_iter().enumerate() {
             if self.materials[index].double_sided.is_some() {
                 continue;
             }
-            let polygons = self
-                .polygons()
-                .enumerate()
-                .filter(|&(k, _)| self.polygon_material(k) == Some(index as u32))
-                .map(|(_, poly)| poly);
-            let closed = closed_and_oriented(self.positions.len(), polygons);
+            let closed = sum == 0 && {
+                let polygons = self
+                    .polygons()
+                    .enumerate()
+                    .filter(|&(k, _)| self.polygon_material(k) == Some(index as u32))
+                    .map(|(_, poly)| poly);
+                closed_exactly(self.positions.len(), polygons)
+            };
             self.materials[index].double_sided = Some(!closed);
         }
     }
@@ -433,13 +458,16 @@ impl IndexedMesh {
 /// closed, consistently oriented surface. Linear: each vertex's outgoing
 /// half-edges are gathered (counting sort by their start), and each
 /// half-edge a → b must be the only one of its kind and find b → a.
+#[cfg(test)]
 fn closed_and_oriented<'a>(
     vertices: usize,
     polygons: impl Iterator<Item = &'a [u32]> + Clone,
 ) -> bool {
-    if !reversal_balanced(polygons.clone()) {
-        return false;
-    }
+    reversal_balanced(polygons.clone()) && closed_exactly(vertices, polygons)
+}
+
+/// [`closed_and_oriented`] without the quick test.
+fn closed_exactly<'a>(vertices: usize, polygons: impl Iterator<Item = &'a [u32]> + Clone) -> bool {
     let mut start = vec![0u32; vertices + 1];
     let mut corners = 0usize;
     for poly in polygons.clone() {
@@ -476,22 +504,27 @@ fn closed_and_oriented<'a>(
 }
 
 /// A necessary condition for [`closed_and_oriented`], in one pass without
-/// allocating: on a closed, consistently oriented surface the half-edges
-/// a → b are the half-edges b → a reversed, so a sum of an asymmetric hash
-/// over each set agrees. A border (every open sheet) almost surely breaks
-/// the balance; only a balanced set goes on to the exact test.
+/// allocating: on a closed, consistently oriented surface each half-edge
+/// a → b meets its reverse b → a, so a sum of a hash of each edge, signed
+/// by its direction, cancels. A border (every open sheet) almost surely
+/// leaves it unbalanced; only a balanced set goes on to the exact test.
+#[cfg(test)]
 fn reversal_balanced<'a>(polygons: impl Iterator<Item = &'a [u32]>) -> bool {
-    let hash = |a: u32, b: u32| splitmix64(super::edge_key::directed(a, b));
-    let (mut forward, mut backward) = (0u64, 0u64);
-    for poly in polygons {
-        let mut a = *poly.last().unwrap_or(&0);
-        for &b in poly {
-            forward = forward.wrapping_add(hash(a, b));
-            backward = backward.wrapping_add(hash(b, a));
-            a = b;
-        }
+    polygons.fold(0u64, |sum, poly| sum.wrapping_add(reversal_sum(poly))) == 0
+}
+
+/// One polygon's share of [`reversal_balanced`]'s sum: one hash per edge.
+fn reversal_sum(poly: &[u32]) -> u64 {
+    let mut sum = 0u64;
+    let mut a = *poly.last().unwrap_or(&0);
+    for &b in poly {
+        let h = splitmix64(super::edge_key::directed(a.min(b), a.max(b)));
+        // Negated (two's complement, without a branch) for b → a.
+        let flip = u64::from(a > b).wrapping_neg();
+        sum = sum.wrapping_add((h ^ flip).wrapping_sub(flip));
+        a = b;
     }
-    forward == backward
+    sum
 }
 
 /// SplitMix64's finalizer: a bijection on `u64` that scatters every bit.

@@ -57,7 +57,8 @@ pub(super) fn tag(mesh: &mut Mesh, made: &Selection, looks: (Option<u32>, Option
 pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     let mut out = mesh.to_indexed();
     let look = &program.look;
-    let (face_parts, line_parts) = element_parts(program, mesh);
+    // Wire edges are walked only when the export found some.
+    let (mut face_parts, mut line_parts) = element_parts(program, mesh, !out.lines.is_empty());
     if face_parts.is_empty() && line_parts.is_empty() {
         return out;
     }
@@ -65,7 +66,7 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     // Parts with geometry, renumbered in the program's order.
     let mut used = vec![false; look.parts.len().max(1)];
     for &p in face_parts.iter().chain(&line_parts) {
-        used[p] = true;
+        used[p as usize] = true;
     }
     let (kept, part_index) = renumber(&used);
     let name_of = |p: usize| {
@@ -74,35 +75,47 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
             .map_or_else(|| "model".to_owned(), |part| part.name.clone())
     };
     out.parts = kept.iter().map(|&p| name_of(p)).collect();
-    out.polygon_parts = face_parts.iter().map(|&p| part_index[p]).collect();
-    out.line_parts = line_parts.iter().map(|&p| part_index[p]).collect();
+    line_parts
+        .iter_mut()
+        .for_each(|p| *p = part_index[*p as usize]);
+    out.line_parts = line_parts;
     if face_parts.is_empty() {
         return out;
     }
 
     // Materials: the step's, else the part's, else the fallback.
     let fallback = look.materials.len();
-    let own_material = int_layer(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL);
-    let face_materials: Vec<usize> = mesh
-        .face_ids()
-        .zip(&face_parts)
-        .map(|(f, &p)| {
-            let own = own_material(f.index());
-            usize::try_from(own)
-                .ok()
-                .filter(|&m| m < look.materials.len())
-                .or_else(|| {
-                    look.parts
-                        .get(p)
-                        .and_then(|part| part.material)
-                        .map(|m| m as usize)
-                })
-                .unwrap_or(fallback)
-        })
-        .collect();
+    let material_of = |own: i32, part: u32| {
+        usize::try_from(own)
+            .ok()
+            .filter(|&m| m < look.materials.len())
+            .or_else(|| {
+                look.parts
+                    .get(part as usize)
+                    .and_then(|part| part.material)
+                    .map(|m| m as usize)
+            })
+            .unwrap_or(fallback) as u32
+    };
+    let mut face_materials: Vec<u32> =
+        match uniform_int(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL) {
+            Some(own) => face_parts.iter().map(|&p| material_of(own, p)).collect(),
+            None => {
+                let own_material = int_layer(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL);
+                mesh.face_ids()
+                    .zip(&face_parts)
+                    .map(|(f, &p)| material_of(own_material(f.index()), p))
+                    .collect()
+            }
+        };
+    // Renumbered in place: the program's indices become the file's.
+    face_parts
+        .iter_mut()
+        .for_each(|p| *p = part_index[*p as usize]);
+    out.polygon_parts = face_parts;
     let mut used = vec![false; fallback + 1];
     for &m in &face_materials {
-        used[m] = true;
+        used[m as usize] = true;
     }
     let (kept_materials, material_index) = renumber(&used);
     out.materials = kept_materials
@@ -114,7 +127,10 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
                 .unwrap_or_else(Material::fallback)
         })
         .collect();
-    out.polygon_materials = face_materials.iter().map(|&m| material_index[m]).collect();
+    face_materials
+        .iter_mut()
+        .for_each(|m| *m = material_index[*m as usize]);
+    out.polygon_materials = face_materials;
 
     // Per out-part settings.
     let setting = |k: &usize| look.parts.get(*k);
@@ -203,24 +219,43 @@ pub(super) fn int_layer<'m>(
     }
 }
 
-/// The part (index into the program's parts) of every face and of every
-/// wire edge, in the kernel's canonical export order.
-fn element_parts(program: &Program, mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
+/// The value [`int_layer`] reads for every element, when it is the same
+/// for all: the layer is missing or stores no value (so every slot reads
+/// its default). Spares a walk of the elements.
+fn uniform_int(mesh: &Mesh, name: &str, domain: Domain, default: i32) -> Option<i32> {
+    match mesh.attributes().layer(name, domain) {
+        None => Some(default),
+        Some(layer) if layer.is_empty() => match layer.default {
+            AttrValue::Int(v) => Some(v),
+            _ => Some(default),
+        },
+        Some(_) => None,
+    }
+}
+
+/// The part (index into the program's parts) of every face and, with
+/// `lines`, of every wire edge, in the kernel's canonical export order.
+fn element_parts(program: &Program, mesh: &Mesh, lines: bool) -> (Vec<u32>, Vec<u32>) {
     let parts = program.look.parts.len();
-    let part_of = |v: i32| usize::try_from(v).ok().filter(|&p| p < parts).unwrap_or(0);
-    let (face_part, edge_part) = (
-        int_layer(mesh, PART_LAYER, Domain::Face, 0),
-        int_layer(mesh, PART_LAYER, Domain::Edge, 0),
-    );
-    let faces = mesh
-        .face_ids()
-        .map(|f| part_of(face_part(f.index())))
-        .collect();
-    let lines = mesh
-        .edge_ids()
-        .filter(|&e| mesh.is_wire_edge(e))
-        .map(|e| part_of(edge_part(e.index())))
-        .collect();
+    let part_of = |v: i32| usize::try_from(v).ok().filter(|&p| p < parts).unwrap_or(0) as u32;
+    let faces = match uniform_int(mesh, PART_LAYER, Domain::Face, 0) {
+        Some(v) => vec![part_of(v); mesh.face_count()],
+        None => {
+            let face_part = int_layer(mesh, PART_LAYER, Domain::Face, 0);
+            mesh.face_ids()
+                .map(|f| part_of(face_part(f.index())))
+                .collect()
+        }
+    };
+    let lines = if lines {
+        let edge_part = int_layer(mesh, PART_LAYER, Domain::Edge, 0);
+        mesh.edge_ids()
+            .filter(|&e| mesh.is_wire_edge(e))
+            .map(|e| part_of(edge_part(e.index())))
+            .collect()
+    } else {
+        Vec::new()
+    };
     (faces, lines)
 }
 
@@ -235,7 +270,7 @@ pub struct PartCount {
 /// Element counts of the parts that hold any, in the program's part
 /// order (the stats' `parts`).
 pub fn part_counts(program: &Program, mesh: &Mesh) -> Vec<PartCount> {
-    let (faces, lines) = element_parts(program, mesh);
+    let (faces, lines) = element_parts(program, mesh, true);
     let mut counts: Vec<PartCount> = (0..program.look.parts.len().max(1))
         .map(|p| PartCount {
             name: program
@@ -248,10 +283,10 @@ pub fn part_counts(program: &Program, mesh: &Mesh) -> Vec<PartCount> {
         })
         .collect();
     for p in faces {
-        counts[p].faces += 1;
+        counts[p as usize].faces += 1;
     }
     for p in lines {
-        counts[p].wire_edges += 1;
+        counts[p as usize].wire_edges += 1;
     }
     counts.retain(|c| c.faces + c.wire_edges > 0);
     counts

@@ -27,6 +27,12 @@ fn for_each_triangle(mesh: &IndexedMesh, mut emit: impl FnMut(DVec3, [DVec3; 3])
     let mut tri = PolygonTriangulator::default();
     for poly in mesh.polygons() {
         let poly_normal = tri.run(mesh, poly);
+        if let [p0, p1, p2] = tri.points[..] {
+            // A triangle's own normal is the polygon's: the same points, and
+            // `unit_normal_of` (which `run` uses) gives `unit_normal`'s bits.
+            emit(poly_normal.unwrap_or(DVec3::ZERO), [p0, p1, p2]);
+            continue;
+        }
         for t in &tri.triangles {
             let corners = t.map(|i| tri.points[i as usize]);
             let normal = polygon::unit_normal(&corners)
@@ -50,14 +56,17 @@ pub fn encode_binary(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
     out.resize(80, b' ');
     out.extend_from_slice(&count32.to_le_bytes());
     for_each_triangle(mesh, |normal, corners| {
-        for v in std::iter::once(normal).chain(corners) {
-            for c in v.to_array() {
-                // -0 is normalized so equal geometry always gives equal bytes.
-                let c = if c == 0.0 { 0.0f32 } else { c as f32 };
-                out.extend_from_slice(&c.to_le_bytes());
-            }
+        // One 50-byte record, appended whole.
+        let mut record = [0u8; 50];
+        let values = std::iter::once(normal)
+            .chain(corners)
+            .flat_map(|v| v.to_array());
+        for (bytes, c) in record.chunks_exact_mut(4).zip(values) {
+            // -0 is normalized so equal geometry always gives equal bytes.
+            let c = if c == 0.0 { 0.0f32 } else { c as f32 };
+            bytes.copy_from_slice(&c.to_le_bytes());
         }
-        out.extend_from_slice(&[0, 0]);
+        out.extend_from_slice(&record);
     });
     Ok(out)
 }

@@ -2,47 +2,52 @@
 
 use super::*;
 use crate::geom::material::{AlphaMode, Material};
+use crate::geom::polygon;
+use json::accessor::ComponentType;
 
 pub(crate) const DATA_URI_PREFIX: &str = "data:application/octet-stream;base64,";
 
 /// Encodes `mesh` as a `.gltf` JSON document with an embedded base64 buffer.
 pub fn encode_gltf(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    let (json, _) = build(mesh, true)?;
-    Ok(json)
+    let doc = Document::new(mesh, true)?;
+    if doc.bin_len == 0 {
+        return Ok(doc.json);
+    }
+    let mut bin = Vec::with_capacity(doc.bin_len);
+    doc.write_buffer(&mut bin);
+    // Encoding straight into the output avoids serde escaping a ~100 MB string.
+    splice_base64(doc.json, &bin)
 }
 
 /// Encodes `mesh` as binary glTF (`.glb`): the 12-byte header, the JSON
-/// chunk padded with spaces and the binary chunk, written once into the
-/// output (glTF 2.0 §4.4; no intermediate copy of the buffer).
+/// chunk padded with spaces and the binary chunk (glTF 2.0 §4.4). The JSON
+/// is made from the buffer's layout first, so the buffer is written once,
+/// in place, into an output allocated at its final size.
 pub fn encode_glb(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    let (json, mut bin) = build(mesh, false)?;
-    let json_len = json.len().next_multiple_of(4);
-    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
+    let doc = Document::new(mesh, false)?;
+    let json_len = doc.json.len().next_multiple_of(4);
+    let bin_chunk = if doc.bin_len == 0 { 0 } else { 8 + doc.bin_len };
     let total = 12 + 8 + json_len + bin_chunk;
     let too_big = || IoError::InvalidMesh {
         message: format!("GLB container: {total} bytes exceed the format's 4 GiB"),
     };
     let total32 = u32::try_from(total).map_err(|_| too_big())?;
-    let mut front = Vec::with_capacity(28 + json_len);
-    front.extend_from_slice(b"glTF");
-    front.extend_from_slice(&2u32.to_le_bytes());
-    front.extend_from_slice(&total32.to_le_bytes());
-    front.extend_from_slice(&(json_len as u32).to_le_bytes());
-    front.extend_from_slice(b"JSON");
-    front.extend_from_slice(&json);
-    front.resize(20 + json_len, b' ');
-    if bin.is_empty() {
-        return Ok(front);
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total32.to_le_bytes());
+    out.extend_from_slice(&(json_len as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&doc.json);
+    out.resize(20 + json_len, b' ');
+    if doc.bin_len > 0 {
+        out.extend_from_slice(&(doc.bin_len as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        doc.write_buffer(&mut out);
     }
-    front.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    front.extend_from_slice(b"BIN\0");
-    // The buffer was reserved with room for this in front: one move, no copy.
-    bin.splice(0..0, front);
-    Ok(bin)
+    debug_assert_eq!(out.len(), total);
+    Ok(out)
 }
-
-/// Bytes reserved in front of the binary buffer for the GLB header and JSON.
-const GLB_FRONT_ROOM: usize = 64 * 1024;
 
 pub(super) fn to_f32(p: [f64; 3]) -> [f32; 3] {
     // Range checked by the caller; -0 is normalized so equal geometry gives equal bytes.
@@ -63,24 +68,91 @@ pub(super) fn unit_f32(v: DVec3) -> [f32; 3] {
     })
 }
 
-/// One vertex of a primitive: its source vertex and the shading values
-/// it is split by (vertices are shared where all of them agree).
-#[derive(Clone, Copy, PartialEq)]
-pub(super) struct OutVertex {
-    source: u32,
-    normal: [f32; 3],
-    uv: [f32; 2],
-    color: [f32; 3],
-}
-
-/// A primitive before it is laid out: its mode, material, vertices and
-/// indices (triangles or line pairs).
+/// A primitive before it is laid out: its mode, material, vertices (one
+/// column per value, as the buffer holds them) and indices (triangles or
+/// line pairs).
 pub(super) struct Draw {
     mode: json::mesh::Mode,
     material: Option<u32>,
-    vertices: Vec<OutVertex>,
+    /// Each vertex's source vertex (for the vertex scalars).
+    sources: Vec<u32>,
+    /// Positions as written: `f32`, Y-up.
+    positions: Vec<[f32; 3]>,
+    /// A surface's normals (Y-up), and its texture coordinates and colours
+    /// where the mesh has them; empty otherwise.
+    normals: Vec<[f32; 3]>,
+    uvs: Vec<[f32; 2]>,
+    colors: Vec<[f32; 3]>,
     indices: Vec<u32>,
+    /// Running min/max of `positions` (kept as they are added, while hot).
+    bounds: Bounds,
 }
+
+/// One array of a primitive, in the order the buffer holds them.
+#[derive(Clone, Copy)]
+enum Array {
+    Positions,
+    Normals,
+    Uvs,
+    Colors,
+    Scalar(usize),
+    /// Omitted where the indices would only count 0, 1, 2, …
+    Indices(ComponentType),
+}
+
+impl Draw {
+    fn vertex_count(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// The arrays this primitive writes, in buffer order.
+    fn arrays(&self, mesh: &IndexedMesh, scalars: usize) -> Vec<Array> {
+        let mut arrays = vec![Array::Positions];
+        if self.mode == json::mesh::Mode::Triangles {
+            arrays.push(Array::Normals);
+            if !mesh.corner_uvs.is_empty() {
+                arrays.push(Array::Uvs);
+            }
+            if !mesh.corner_colors.is_empty() {
+                arrays.push(Array::Colors);
+            }
+        }
+        arrays.extend((0..scalars).map(Array::Scalar));
+        // No index buffer where it would only count 0, 1, 2, … (every corner
+        // its own vertex: a soup, or flat normals on a smooth surface).
+        let n = self.vertex_count();
+        let identity = self.indices.len() == n
+            && self
+                .indices
+                .iter()
+                .enumerate()
+                .all(|(i, &x)| x as usize == i);
+        if !identity {
+            // u16 indices while the largest index (n - 1) stays below the restart value.
+            arrays.push(Array::Indices(if n > usize::from(u16::MAX) {
+                ComponentType::U32
+            } else {
+                ComponentType::U16
+            }));
+        }
+        arrays
+    }
+
+    /// Bytes `array` takes in the buffer (u16 indices padded so the next
+    /// view starts 4-byte aligned).
+    fn bytes(&self, array: Array) -> usize {
+        let n = self.vertex_count();
+        match array {
+            Array::Positions | Array::Normals | Array::Colors => 12 * n,
+            Array::Uvs => 8 * n,
+            Array::Scalar(_) => 4 * n,
+            Array::Indices(ComponentType::U16) => (2 * self.indices.len()).next_multiple_of(4),
+            Array::Indices(_) => 4 * self.indices.len(),
+        }
+    }
+}
+
+const NONE: u32 = u32::MAX;
 
 /// Per-source-vertex chains of the output vertices made from it, so a
 /// corner finds an equal vertex of its primitive in a few comparisons
@@ -92,44 +164,98 @@ pub(super) struct Sharing {
     touched: Vec<u32>,
 }
 
+/// What a surface corner's vertex carries besides its position.
+struct Shading {
+    normal: [f32; 3],
+    uv: [f32; 2],
+    color: [f32; 3],
+}
+
 impl Sharing {
     fn new(vertices: usize) -> Self {
         Sharing {
-            head: vec![u32::MAX; vertices],
+            head: vec![NONE; vertices],
             next: Vec::new(),
             touched: Vec::new(),
         }
     }
 
-    /// The index of `v` in `vertices`, added when no equal vertex exists.
-    fn index(&mut self, vertices: &mut Vec<OutVertex>, v: OutVertex) -> u32 {
-        let slot = v.source as usize;
-        let mut at = self.head[slot];
-        while at != u32::MAX {
-            if vertices[at as usize] == v {
+    /// The index of the surface vertex (`source`, `s`) in `draw`, added when
+    /// no equal one exists (compared as `f32` values, as written).
+    fn surface(&mut self, draw: &mut Draw, mesh: &IndexedMesh, source: u32, s: &Shading) -> u32 {
+        let (uv, color) = (!mesh.corner_uvs.is_empty(), !mesh.corner_colors.is_empty());
+        let mut at = self.head[source as usize];
+        while at != NONE {
+            let i = at as usize;
+            if draw.normals[i] == s.normal
+                && (!uv || draw.uvs[i] == s.uv)
+                && (!color || draw.colors[i] == s.color)
+            {
                 return at;
             }
-            at = self.next[at as usize];
+            at = self.next[i];
         }
-        let index = vertices.len() as u32;
-        if self.head[slot] == u32::MAX {
-            self.touched.push(v.source);
+        draw.normals.push(s.normal);
+        if uv {
+            draw.uvs.push(s.uv);
+        }
+        if color {
+            draw.colors.push(s.color);
+        }
+        self.add(draw, mesh, source)
+    }
+
+    /// The index of a wire vertex: one per source vertex.
+    fn wire(&mut self, draw: &mut Draw, mesh: &IndexedMesh, source: u32) -> u32 {
+        match self.head[source as usize] {
+            NONE => self.add(draw, mesh, source),
+            at => at,
+        }
+    }
+
+    fn add(&mut self, draw: &mut Draw, mesh: &IndexedMesh, source: u32) -> u32 {
+        let slot = source as usize;
+        let index = draw.sources.len() as u32;
+        if self.head[slot] == NONE {
+            self.touched.push(source);
         }
         self.next.push(self.head[slot]);
         self.head[slot] = index;
-        vertices.push(v);
+        draw.sources.push(source);
+        let p = to_f32(turn_y_up(mesh.positions[slot]));
+        draw.bounds.add(p);
+        draw.positions.push(p);
         index
     }
 
     /// Forgets the primitive just built.
     fn clear(&mut self) {
         for &v in &self.touched {
-            self.head[v as usize] = u32::MAX;
+            self.head[v as usize] = NONE;
         }
         self.touched.clear();
         self.next.clear();
     }
 }
+
+impl Draw {
+    fn new(mode: json::mesh::Mode, material: Option<u32>) -> Self {
+        Draw {
+            mode,
+            material,
+            sources: Vec::new(),
+            positions: Vec::new(),
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            colors: Vec::new(),
+            indices: Vec::new(),
+            bounds: Bounds::new(),
+        }
+    }
+}
+
+/// Polygons planned at a time (their flat normals first).
+const BLOCK: usize = 256;
 
 /// The primitives of each part, in part order: the surface split by
 /// material (material order), then the part's wire edges.
@@ -137,100 +263,138 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
     use json::mesh::Mode;
     let parts = mesh.part_count();
     let materials = mesh.materials.len().max(1);
-    let (order, start) = mesh.polygon_groups();
+    // One group (part, material) is every polygon in order: no sort.
+    let (order, start) = if parts * materials == 1 {
+        (Vec::new(), vec![0, mesh.polygon_count()])
+    } else {
+        mesh.polygon_groups()
+    };
     let mut sharing = Sharing::new(mesh.positions.len());
     let mut tri = PolygonTriangulator::default();
     let mut local: Vec<u32> = Vec::new();
+    let mut flats: Vec<[f32; 3]> = Vec::with_capacity(BLOCK);
+    let smooth = !mesh.corner_normals.is_empty();
+    let (has_uv, has_color) = (!mesh.corner_uvs.is_empty(), !mesh.corner_colors.is_empty());
     let mut out = Vec::with_capacity(parts);
     for part in 0..parts {
         let mut draws = Vec::new();
         for material in 0..materials {
             let g = part * materials + material;
-            let polygons = &order[start[g]..start[g + 1]];
-            if polygons.is_empty() {
+            let range = start[g]..start[g + 1];
+            if range.is_empty() {
                 continue;
             }
+            let polygon_at = |i: usize| {
+                if order.is_empty() {
+                    i
+                } else {
+                    order[i] as usize
+                }
+            };
             // At most one vertex per corner, and three indices per corner
             // beyond the second of each polygon: reserved once.
-            let corners: usize = polygons
-                .iter()
-                .map(|&k| mesh.polygon(k as usize).len())
-                .sum();
-            let mut draw = Draw {
-                mode: Mode::Triangles,
-                material: (!mesh.materials.is_empty()).then_some(material as u32),
-                vertices: Vec::with_capacity(corners),
-                indices: Vec::with_capacity(3 * (corners - 2 * polygons.len())),
+            let corners: usize = if order.is_empty() {
+                mesh.face_indices.len()
+            } else {
+                range
+                    .clone()
+                    .map(|i| mesh.polygon(polygon_at(i)).len())
+                    .sum()
             };
+            let mut draw = Draw::new(
+                Mode::Triangles,
+                (!mesh.materials.is_empty()).then_some(material as u32),
+            );
+            draw.sources.reserve(corners);
+            draw.positions.reserve(corners);
+            draw.normals.reserve(corners);
+            if has_uv {
+                draw.uvs.reserve(corners);
+            }
+            if has_color {
+                draw.colors.reserve(corners);
+            }
+            draw.indices.reserve(3 * (corners - 2 * range.len()));
             sharing.next.reserve(corners);
-            let smooth = !mesh.corner_normals.is_empty();
-            for &k in polygons {
-                let k = k as usize;
-                let poly = mesh.polygon(k);
-                // The flat normal only where no corner normal is given; a
-                // triangle is its own triangulation.
-                let flat = if smooth {
-                    tri.triangles.clear();
-                    if poly.len() == 3 {
-                        tri.triangles.push([0, 1, 2]);
+            let position = |v: u32| DVec3::from_array(mesh.positions[v as usize]);
+            let mut block = range.start..range.start;
+            while block.end < range.end {
+                block = block.end..(block.end + BLOCK).min(range.end);
+                // Triangles' flat normals first, in a loop of their own: the
+                // square roots and divisions of neighbouring triangles overlap.
+                // A triangle's normal is the one `PolygonTriangulator::run`
+                // gives it (the same function).
+                flats.clear();
+                if !smooth {
+                    flats.extend(block.clone().map(|i| match *mesh.polygon(polygon_at(i)) {
+                        [a, b, c] => {
+                            let corners = [position(a), position(b), position(c)];
+                            unit_f32(polygon::unit_normal_of(&corners).unwrap_or(DVec3::Z))
+                        }
+                        _ => [0.0; 3],
+                    }));
+                }
+                for (b, i) in block.clone().enumerate() {
+                    let k = polygon_at(i);
+                    let first = mesh.face_starts[k] as usize;
+                    let poly = &mesh.face_indices[first..mesh.face_starts[k + 1] as usize];
+                    let triangle = poly.len() == 3;
+                    // The flat normal only where no corner normal is given; a
+                    // triangle is its own triangulation.
+                    let flat = if smooth {
+                        if !triangle {
+                            tri.run(mesh, poly);
+                        }
+                        [0.0; 3]
+                    } else if triangle {
+                        flats[b]
                     } else {
-                        tri.run(mesh, poly);
-                    }
-                    [0.0; 3]
-                } else {
-                    unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z))
-                };
-                let first = mesh.face_starts[k] as usize;
-                local.clear();
-                for (i, &v) in poly.iter().enumerate() {
-                    let c = first + i;
-                    let vertex = OutVertex {
-                        source: v,
-                        normal: match mesh.corner_normals.get(c) {
+                        unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z))
+                    };
+                    local.clear();
+                    for (j, &v) in poly.iter().enumerate() {
+                        let c = first + j;
+                        let normal = match mesh.corner_normals.get(c) {
                             Some(&n) => unit_f32(DVec3::from_array(n)),
                             None => flat,
-                        },
-                        uv: mesh
-                            .corner_uvs
-                            .get(c)
-                            // glTF's v runs down the image (§3.7.2.1).
-                            .map_or([0.0; 2], |t| [t[0] as f32, (1.0 - t[1]) as f32]),
-                        color: mesh
-                            .corner_colors
-                            .get(c)
-                            .map_or([0.0; 3], |c| c.map(|x| x as f32)),
-                    };
-                    local.push(sharing.index(&mut draw.vertices, vertex));
+                        };
+                        let shading = Shading {
+                            normal: turn_normal(normal),
+                            uv: mesh
+                                .corner_uvs
+                                .get(c)
+                                // glTF's v runs down the image (§3.7.2.1).
+                                .map_or([0.0; 2], |t| [t[0] as f32, (1.0 - t[1]) as f32]),
+                            color: mesh
+                                .corner_colors
+                                .get(c)
+                                .map_or([0.0; 3], |c| c.map(|x| x as f32)),
+                        };
+                        local.push(sharing.surface(&mut draw, mesh, v, &shading));
+                    }
+                    if triangle {
+                        draw.indices.extend_from_slice(&local);
+                    } else {
+                        draw.indices
+                            .extend(tri.triangles.iter().flatten().map(|&i| local[i as usize]));
+                    }
                 }
-                draw.indices
-                    .extend(tri.triangles.iter().flatten().map(|&i| local[i as usize]));
             }
             sharing.clear();
-            if u32::try_from(draw.vertices.len()).is_err() {
+            if u32::try_from(draw.vertex_count()).is_err() {
                 return Err(IoError::InvalidMesh {
                     message: "a primitive's vertices exceed glTF's u32 index range".into(),
                 });
             }
             draws.push(draw);
         }
-        let mut wire = Draw {
-            mode: Mode::Lines,
-            material: None,
-            vertices: Vec::new(),
-            indices: Vec::new(),
-        };
+        let mut wire = Draw::new(Mode::Lines, None);
         for (k, line) in mesh.lines.iter().enumerate() {
             if mesh.line_part(k) as usize != part {
                 continue;
             }
             for &v in line {
-                let vertex = OutVertex {
-                    source: v,
-                    normal: [0.0; 3],
-                    uv: [0.0; 2],
-                    color: [0.0; 3],
-                };
-                let index = sharing.index(&mut wire.vertices, vertex);
+                let index = sharing.wire(&mut wire, mesh, v);
                 wire.indices.push(index);
             }
         }
@@ -243,43 +407,60 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
     Ok(out)
 }
 
-/// The binary buffer, little-endian; every view starts 4-byte aligned.
-pub(super) struct Words(pub Vec<u8>);
-
-impl Words {
-    fn floats(&mut self, values: impl Iterator<Item = f32>) {
-        for x in values {
-            self.0.extend_from_slice(&x.to_le_bytes());
-        }
-    }
-
-    fn words(&mut self, values: impl Iterator<Item = u32>) {
-        for x in values {
-            self.0.extend_from_slice(&x.to_le_bytes());
-        }
+/// Appends `values` little-endian: one copy on a little-endian machine.
+fn put_f32s(out: &mut Vec<u8>, values: &[f32]) {
+    if cfg!(target_endian = "little") {
+        out.extend_from_slice(bytemuck::cast_slice(values));
+    } else {
+        values
+            .iter()
+            .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
     }
 }
 
-/// Document under construction: JSON root, buffer, and the custom
-/// attributes to splice into each primitive.
-pub(super) struct Builder {
+/// [`put_f32s`] for `u32`s.
+fn put_u32s(out: &mut Vec<u8>, values: &[u32]) {
+    if cfg!(target_endian = "little") {
+        out.extend_from_slice(bytemuck::cast_slice(values));
+    } else {
+        values
+            .iter()
+            .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+    }
+}
+
+/// The document: its JSON, made from the buffer's layout, and the
+/// primitives that fill the buffer when it is written.
+struct Document<'m> {
+    json: Vec<u8>,
+    scalars: Vec<(&'m str, &'m [f64])>,
+    /// Every primitive, in buffer order, with its arrays.
+    draws: Vec<(Draw, Vec<Array>)>,
+    bin_len: usize,
+}
+
+/// JSON under construction: the root, the next free buffer byte, and the
+/// custom attributes to splice into each primitive.
+struct Builder {
     root: json::Root,
-    words: Words,
+    offset: usize,
     custom: Vec<Vec<(String, u32)>>,
 }
 
 impl Builder {
-    /// Appends a bufferView + accessor over `data` (already pushed from
-    /// byte `start`); returns the accessor.
+    /// Appends a bufferView + accessor over the next `count` elements of
+    /// the buffer (`bytes` of it); returns the accessor.
     fn accessor(
         &mut self,
-        start: usize,
+        bytes: usize,
         count: usize,
-        component: json::accessor::ComponentType,
+        component: ComponentType,
         type_: json::accessor::Type,
         target: json::buffer::Target,
     ) -> Index<json::Accessor> {
-        use json::accessor::{ComponentType, Type};
+        use json::accessor::Type;
+        let start = self.offset;
+        self.offset += bytes;
         let component_size = match component {
             ComponentType::U16 => 2,
             _ => 4,
@@ -316,98 +497,57 @@ impl Builder {
         })
     }
 
-    /// Lays out one primitive's arrays and returns its JSON.
+    /// The JSON of one primitive, its arrays laid out next in the buffer.
     fn primitive(
         &mut self,
-        mesh: &IndexedMesh,
         draw: &Draw,
+        arrays: &[Array],
         scalars: &[(&str, &[f64])],
         material_indices: &[Index<json::Material>],
     ) -> json::mesh::Primitive {
-        use json::accessor::{ComponentType, Type};
+        use json::accessor::Type;
         use json::buffer::Target::{ArrayBuffer, ElementArrayBuffer};
         use json::mesh::Semantic;
-        let n = draw.vertices.len();
+        let n = draw.vertex_count();
         let mut attributes = BTreeMap::new();
-        let start = self.words.0.len();
-        let mut bounds = Bounds::new();
-        for v in &draw.vertices {
-            let p = to_f32(turn_y_up(mesh.positions[v.source as usize]));
-            bounds.add(p);
-            self.words.floats(p.into_iter());
-        }
-        let position = self.accessor(start, n, ComponentType::F32, Type::Vec3, ArrayBuffer);
-        let to_value = |v: [f32; 3]| json::Value::from(v.map(f64::from).to_vec());
-        self.root.accessors[position.value()].min = Some(to_value(bounds.min));
-        self.root.accessors[position.value()].max = Some(to_value(bounds.max));
-        attributes.insert(Checked::Valid(Semantic::Positions), position);
-        let surface = draw.mode == json::mesh::Mode::Triangles;
-        if surface {
-            let start = self.words.0.len();
-            self.words
-                .floats(draw.vertices.iter().flat_map(|v| turn_normal(v.normal)));
-            let normal = self.accessor(start, n, ComponentType::F32, Type::Vec3, ArrayBuffer);
-            attributes.insert(Checked::Valid(Semantic::Normals), normal);
-            if !mesh.corner_uvs.is_empty() {
-                let start = self.words.0.len();
-                self.words.floats(draw.vertices.iter().flat_map(|v| v.uv));
-                let uv = self.accessor(start, n, ComponentType::F32, Type::Vec2, ArrayBuffer);
-                attributes.insert(Checked::Valid(Semantic::TexCoords(0)), uv);
-            }
-            if !mesh.corner_colors.is_empty() {
-                let start = self.words.0.len();
-                self.words
-                    .floats(draw.vertices.iter().flat_map(|v| v.color));
-                let color = self.accessor(start, n, ComponentType::F32, Type::Vec3, ArrayBuffer);
-                attributes.insert(Checked::Valid(Semantic::Colors(0)), color);
-            }
-        }
         let mut custom = Vec::with_capacity(scalars.len());
-        for (name, values) in scalars {
-            let start = self.words.0.len();
-            self.words.floats(
-                draw.vertices
-                    .iter()
-                    .map(|v| values[v.source as usize] as f32),
-            );
-            let accessor = self.accessor(start, n, ComponentType::F32, Type::Scalar, ArrayBuffer);
-            custom.push((
-                format!("_{}", name.to_ascii_uppercase()),
-                accessor.value() as u32,
-            ));
+        let mut indices = None;
+        for &array in arrays {
+            let bytes = draw.bytes(array);
+            let (semantic, type_) = match array {
+                Array::Positions => (Semantic::Positions, Type::Vec3),
+                Array::Normals => (Semantic::Normals, Type::Vec3),
+                Array::Uvs => (Semantic::TexCoords(0), Type::Vec2),
+                Array::Colors => (Semantic::Colors(0), Type::Vec3),
+                Array::Scalar(s) => {
+                    let accessor =
+                        self.accessor(bytes, n, ComponentType::F32, Type::Scalar, ArrayBuffer);
+                    let name = format!("_{}", scalars[s].0.to_ascii_uppercase());
+                    custom.push((name, accessor.value() as u32));
+                    continue;
+                }
+                Array::Indices(component) => {
+                    let count = draw.indices.len();
+                    indices = Some(self.accessor(
+                        bytes,
+                        count,
+                        component,
+                        Type::Scalar,
+                        ElementArrayBuffer,
+                    ));
+                    continue;
+                }
+            };
+            let accessor = self.accessor(bytes, n, ComponentType::F32, type_, ArrayBuffer);
+            if let Array::Positions = array {
+                let bounds = &draw.bounds;
+                let to_value = |v: [f32; 3]| json::Value::from(v.map(f64::from).to_vec());
+                self.root.accessors[accessor.value()].min = Some(to_value(bounds.min));
+                self.root.accessors[accessor.value()].max = Some(to_value(bounds.max));
+            }
+            attributes.insert(Checked::Valid(semantic), accessor);
         }
         self.custom.push(custom);
-        // No index buffer where it would only count 0, 1, 2, … (every corner
-        // its own vertex: a soup, or flat normals on a smooth surface).
-        let identity = draw.indices.len() == n
-            && draw
-                .indices
-                .iter()
-                .enumerate()
-                .all(|(i, &x)| x as usize == i);
-        let indices = (!identity).then(|| {
-            // u16 indices while the largest index (n - 1) stays below the restart value.
-            let start = self.words.0.len();
-            let component = if n > usize::from(u16::MAX) {
-                self.words.words(draw.indices.iter().copied());
-                ComponentType::U32
-            } else {
-                for &i in &draw.indices {
-                    self.words.0.extend_from_slice(&(i as u16).to_le_bytes());
-                }
-                // The next view starts 4-byte aligned.
-                let padded = self.words.0.len().next_multiple_of(4);
-                self.words.0.resize(padded, 0);
-                ComponentType::U16
-            };
-            self.accessor(
-                start,
-                draw.indices.len(),
-                component,
-                Type::Scalar,
-                ElementArrayBuffer,
-            )
-        });
         json::mesh::Primitive {
             attributes,
             extensions: Default::default(),
@@ -419,6 +559,136 @@ impl Builder {
             mode: Checked::Valid(draw.mode),
             targets: None,
         }
+    }
+}
+
+impl<'m> Document<'m> {
+    /// Plans the primitives and makes the JSON. With `embed`, the buffer is
+    /// a data URI whose payload is spliced in after serialization.
+    ///
+    /// One node and one mesh per part (named after it, in part order), one
+    /// primitive per material the part uses plus one of its wire edges;
+    /// vertices are shared within a primitive where position, normal,
+    /// texture coordinates and colour agree.
+    fn new(mesh: &'m IndexedMesh, embed: bool) -> Result<Self, IoError> {
+        mesh.validate()?;
+        mesh.check_f32_range("glTF")?;
+        let scalars = mesh.sorted_scalars();
+        for (name, values) in &scalars {
+            if let Some(vertex) = values.iter().position(|v| v.abs() > f64::from(f32::MAX)) {
+                return Err(IoError::InvalidMesh {
+                    message: format!(
+                        "vertex scalar {name:?} at vertex {vertex} ({:e}) does not fit an f32 for glTF",
+                        values[vertex]
+                    ),
+                });
+            }
+        }
+        let planned = plan_draws(mesh)?;
+        let mut b = Builder {
+            root: json::Root {
+                asset: json::Asset {
+                    generator: Some("graftal".to_string()),
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+            offset: 0,
+            custom: Vec::new(),
+        };
+        // Every material is written, in index order, used or not.
+        let material_indices: Vec<Index<json::Material>> = mesh
+            .materials
+            .iter()
+            .map(|m| b.root.push(material_json(m)))
+            .collect();
+        let mut draws = Vec::new();
+        let mut scene_nodes = Vec::new();
+        for (part, part_draws) in planned.into_iter().enumerate() {
+            if part_draws.is_empty() {
+                continue;
+            }
+            let mut primitives = Vec::with_capacity(part_draws.len());
+            for draw in part_draws {
+                let arrays = draw.arrays(mesh, scalars.len());
+                primitives.push(b.primitive(&draw, &arrays, &scalars, &material_indices));
+                draws.push((draw, arrays));
+            }
+            let name = mesh.parts.get(part).cloned();
+            let mesh_index = b.root.push(json::Mesh {
+                extensions: Default::default(),
+                extras: Default::default(),
+                name: name.clone(),
+                primitives,
+                weights: None,
+            });
+            scene_nodes.push(b.root.push(json::Node {
+                mesh: Some(mesh_index),
+                name,
+                ..Default::default()
+            }));
+        }
+        let scene = b.root.push(json::Scene {
+            extensions: Default::default(),
+            extras: Default::default(),
+            name: None,
+            nodes: scene_nodes,
+        });
+        b.root.scene = Some(scene);
+        let bin_len = b.offset;
+        if bin_len > 0 {
+            b.root.push(json::Buffer {
+                byte_length: USize64(bin_len as u64),
+                name: None,
+                // The base64 payload is spliced in after serialization (see above).
+                uri: embed.then(|| DATA_URI_PREFIX.to_string()),
+                extensions: Default::default(),
+                extras: Default::default(),
+            });
+        }
+        let json = json::serialize::to_vec(&b.root).map_err(|e| IoError::InvalidMesh {
+            message: format!("glTF JSON serialization: {e}"),
+        })?;
+        let json = splice_custom_attributes(json, &b.custom)?;
+        Ok(Document {
+            json,
+            scalars,
+            draws,
+            bin_len,
+        })
+    }
+
+    /// Appends the binary buffer (`bin_len` bytes, little-endian) to `out`,
+    /// array by array as [`Builder::primitive`] laid them out.
+    fn write_buffer(&self, out: &mut Vec<u8>) {
+        let start = out.len();
+        for (draw, arrays) in &self.draws {
+            for &array in arrays {
+                let at = out.len();
+                match array {
+                    Array::Positions => put_f32s(out, draw.positions.as_flattened()),
+                    Array::Normals => put_f32s(out, draw.normals.as_flattened()),
+                    Array::Uvs => put_f32s(out, draw.uvs.as_flattened()),
+                    Array::Colors => put_f32s(out, draw.colors.as_flattened()),
+                    Array::Scalar(s) => {
+                        let values = self.scalars[s].1;
+                        for &v in &draw.sources {
+                            out.extend_from_slice(&(values[v as usize] as f32).to_le_bytes());
+                        }
+                    }
+                    Array::Indices(ComponentType::U16) => {
+                        for &i in &draw.indices {
+                            out.extend_from_slice(&(i as u16).to_le_bytes());
+                        }
+                        // The next view starts 4-byte aligned.
+                        out.resize(out.len().next_multiple_of(4), 0);
+                    }
+                    Array::Indices(_) => put_u32s(out, &draw.indices),
+                }
+                debug_assert_eq!(out.len() - at, draw.bytes(array));
+            }
+        }
+        debug_assert_eq!(out.len() - start, self.bin_len);
     }
 }
 
@@ -477,123 +747,6 @@ fn material_json(m: &Material) -> json::Material {
         },
         emissive_factor: EmissiveFactor(m.emissive.map(|c| c as f32)),
         ..Default::default()
-    }
-}
-
-/// Builds the document: (JSON bytes, binary buffer). With `embed`, the
-/// buffer is a data URI in the JSON and the returned buffer is empty.
-///
-/// One node and one mesh per part (named after it, in part order), one
-/// primitive per material the part uses plus one of its wire edges;
-/// vertices are shared within a primitive where position, normal, texture
-/// coordinates and colour agree.
-pub(super) fn build(mesh: &IndexedMesh, embed: bool) -> Result<(Vec<u8>, Vec<u8>), IoError> {
-    mesh.validate()?;
-    mesh.check_f32_range("glTF")?;
-    let scalars = mesh.sorted_scalars();
-    for (name, values) in &scalars {
-        if let Some(vertex) = values.iter().position(|v| v.abs() > f64::from(f32::MAX)) {
-            return Err(IoError::InvalidMesh {
-                message: format!(
-                    "vertex scalar {name:?} at vertex {vertex} ({:e}) does not fit an f32 for glTF",
-                    values[vertex]
-                ),
-            });
-        }
-    }
-    let draws = plan_draws(mesh)?;
-    // The buffer's size is known now: reserve it once (growing a ~100 MB
-    // vector by doubling copies it several times over).
-    let per_vertex = |d: &Draw| {
-        let surface = d.mode == json::mesh::Mode::Triangles;
-        let uv = if surface && !mesh.corner_uvs.is_empty() {
-            2
-        } else {
-            0
-        };
-        let color = if surface && !mesh.corner_colors.is_empty() {
-            3
-        } else {
-            0
-        };
-        3 + if surface { 3 } else { 0 } + uv + color + scalars.len()
-    };
-    let words: usize = draws
-        .iter()
-        .flatten()
-        .map(|d| d.vertices.len() * per_vertex(d) + d.indices.len())
-        .sum();
-    let buffer = Vec::with_capacity(4 * words + GLB_FRONT_ROOM);
-    let mut b = Builder {
-        root: json::Root {
-            asset: json::Asset {
-                generator: Some("graftal".to_string()),
-                ..Default::default()
-            },
-            ..Default::default()
-        },
-        // Room in front for the GLB header and JSON, moved in at the end
-        // (one buffer, no second copy; a larger JSON only reallocates).
-        words: Words(buffer),
-        custom: Vec::new(),
-    };
-    // Every material is written, in index order, used or not.
-    let material_indices: Vec<Index<json::Material>> = mesh
-        .materials
-        .iter()
-        .map(|m| b.root.push(material_json(m)))
-        .collect();
-    let mut scene_nodes = Vec::new();
-    for (part, part_draws) in draws.iter().enumerate() {
-        if part_draws.is_empty() {
-            continue;
-        }
-        let primitives = part_draws
-            .iter()
-            .map(|d| b.primitive(mesh, d, &scalars, &material_indices))
-            .collect();
-        let name = mesh.parts.get(part).cloned();
-        let mesh_index = b.root.push(json::Mesh {
-            extensions: Default::default(),
-            extras: Default::default(),
-            name: name.clone(),
-            primitives,
-            weights: None,
-        });
-        scene_nodes.push(b.root.push(json::Node {
-            mesh: Some(mesh_index),
-            name,
-            ..Default::default()
-        }));
-    }
-    let scene = b.root.push(json::Scene {
-        extensions: Default::default(),
-        extras: Default::default(),
-        name: None,
-        nodes: scene_nodes,
-    });
-    b.root.scene = Some(scene);
-    let bin = std::mem::take(&mut b.words.0);
-    let bytes: &[u8] = &bin;
-    if !bytes.is_empty() {
-        b.root.push(json::Buffer {
-            byte_length: USize64(bytes.len() as u64),
-            name: None,
-            // The base64 payload is spliced in after serialization (see below).
-            uri: embed.then(|| DATA_URI_PREFIX.to_string()),
-            extensions: Default::default(),
-            extras: Default::default(),
-        });
-    }
-    let json = json::serialize::to_vec(&b.root).map_err(|e| IoError::InvalidMesh {
-        message: format!("glTF JSON serialization: {e}"),
-    })?;
-    let json = splice_custom_attributes(json, &b.custom)?;
-    if embed && !bytes.is_empty() {
-        // Encoding straight into the output avoids serde escaping a ~100 MB string.
-        Ok((splice_base64(json, bytes)?, Vec::new()))
-    } else {
-        Ok((json, bin))
     }
 }
 
