@@ -49,10 +49,6 @@ pub struct KernelBuilder<'m> {
     polygons_seen: usize,
     report: ImportReport,
     ring: Vec<VertId>,
-    /// Faces from this index on still have no stored normal: they get
-    /// theirs in one parallel pass (each is a pure function of its
-    /// corners) at the end of the emission, or when the builder lets go.
-    unrefreshed: usize,
 }
 
 impl<'m> KernelBuilder<'m> {
@@ -66,22 +62,11 @@ impl<'m> KernelBuilder<'m> {
             polygons_seen: 0,
             report: ImportReport::default(),
             ring: Vec::new(),
-            unrefreshed: 0,
-        }
-    }
-
-    /// Gives the faces made since the last call their stored normals.
-    fn refresh_pending(&mut self) {
-        if self.unrefreshed < self.faces.len() {
-            self.mesh
-                .refresh_normals_of(&self.faces[self.unrefreshed..]);
-            self.unrefreshed = self.faces.len();
         }
     }
 
     /// What the emission made (ids ascending) and what it dropped.
-    pub fn finish(mut self) -> (Selection, ImportReport) {
-        self.refresh_pending();
+    pub fn finish(self) -> (Selection, ImportReport) {
         // Every vertex is new, so every edge of a new face is too, and the loop that made it
         // is its first: taking each edge at that loop lists it once, in the order it was made
         // (ascending ids unless freed slots were reused), so normalizing is one linear pass.
@@ -96,19 +81,8 @@ impl<'m> KernelBuilder<'m> {
             }
         }
         edges.extend(&self.lines);
-        let verts = std::mem::take(&mut self.verts);
-        let faces = std::mem::take(&mut self.faces);
-        self.unrefreshed = 0;
-        let made = Selection::from_parts(verts, edges, faces);
-        (made, std::mem::take(&mut self.report))
-    }
-}
-
-impl Drop for KernelBuilder<'_> {
-    /// A builder dropped early (an emission that failed) still leaves
-    /// every face it made with its stored normal.
-    fn drop(&mut self) {
-        self.refresh_pending();
+        let made = Selection::from_parts(self.verts, edges, self.faces);
+        (made, self.report)
     }
 }
 
@@ -179,14 +153,14 @@ impl MeshSink for KernelBuilder<'_> {
         }
         if self.ring.len() >= 3 && !has_repeats(&self.ring) {
             // The common case: a simple ring, made as it is.
-            match self.mesh.make_face_unrefreshed(&self.ring) {
+            match self.mesh.make_face(&self.ring) {
                 Ok(f) => self.faces.push(f),
                 Err(_) => self.report.degenerate_faces += 1,
             }
             return Ok(());
         }
         for piece in simple_loops(&self.ring) {
-            match (piece.len() >= 3).then(|| self.mesh.make_face_unrefreshed(&piece)) {
+            match (piece.len() >= 3).then(|| self.mesh.make_face(&piece)) {
                 Some(Ok(f)) => self.faces.push(f),
                 _ => self.report.degenerate_faces += 1,
             }
@@ -219,15 +193,12 @@ impl MeshSink for KernelBuilder<'_> {
     }
 
     fn end(&mut self) -> Result<(), SinkError> {
-        self.refresh_pending();
         Ok(())
     }
 
     /// Leaves what was built: a caller that gives up drops the mesh (a
     /// fresh one) or fails the run (the engine's working mesh).
-    fn abort(&mut self) {
-        self.refresh_pending();
-    }
+    fn abort(&mut self) {}
 }
 
 /// Whether a ring visits a vertex twice.

@@ -321,24 +321,6 @@ impl Mesh {
         )
     }
 
-    /// [`Mesh::make_face`] leaving the stored normal zero, for a builder
-    /// that refreshes all its faces in one parallel pass before it lets go
-    /// of the mesh.
-    pub(in crate::kernel) fn make_face_unrefreshed(
-        &mut self,
-        ring: &[VertId],
-    ) -> Result<FaceId, KernelError> {
-        self.check_face_ring(ring)?;
-        Ok(
-            self.make_face_unchecked(ring, Normals::Defer, |mesh, _, v, w| {
-                match mesh.find_edge(v, w) {
-                    Some(e) => e,
-                    None => mesh.new_edge_unchecked(v, w),
-                }
-            }),
-        )
-    }
-
     /// MakeFace on a ring of vertices whose sides already exist as the given
     /// edges (`edges[i]` joins `ring[i]` and `ring[i + 1]`, the last joins
     /// the last vertex to the first): the face [`Mesh::make_face`] would
@@ -551,27 +533,13 @@ impl Mesh {
         b: VertId,
         first: VertId,
     ) -> Result<(FaceId, EdgeId), KernelError> {
-        let (g, e) = self.split_face_starting_at_unrefreshed(f, a, b, first)?;
-        // After the restart: a normal sums its corners in boundary order.
-        self.refresh_normal(f);
-        self.refresh_normal(g);
-        Ok((g, e))
-    }
-
-    /// [`Mesh::split_face_starting_at`] leaving both pieces' stored normals
-    /// to the caller (one parallel refresh of everything it split).
-    pub(in crate::kernel) fn split_face_starting_at_unrefreshed(
-        &mut self,
-        f: FaceId,
-        a: VertId,
-        b: VertId,
-        first: VertId,
-    ) -> Result<(FaceId, EdgeId), KernelError> {
         let (g, e) = self.split_face_unrefreshed(f, a, b)?;
         for piece in [f, g] {
             if let Some(l) = self.face_loop_at(piece, first) {
                 self.face_mut(piece).first_loop = l;
             }
+            // After the restart: a normal sums its corners in boundary order.
+            self.refresh_normal(piece);
         }
         Ok((g, e))
     }

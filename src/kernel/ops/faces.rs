@@ -16,7 +16,6 @@
 use std::collections::VecDeque;
 
 use glam::DVec3;
-use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::{canonical, OpError, Selection};
@@ -117,51 +116,29 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
         }
     }
     mesh.reserve(0, new_edges, new_loops, new_faces);
-    // Each face's triangles depend on its own corners only, and splitting
-    // one face moves no corner of another: decided for all in parallel.
-    let view: &Mesh = mesh;
-    let plans: Vec<Vec<[u32; 3]>> = faces
-        .par_iter()
-        .with_min_len(256)
-        .map(|&f| {
-            if view.face_len(f) == 3 {
-                return Vec::new();
-            }
-            let mut triangles = Vec::new();
-            let mut small = [DVec3::ZERO; 8];
-            if view.face_len(f) <= small.len() {
-                let mut n = 0;
-                for (slot, v) in small.iter_mut().zip(view.face_verts(f)) {
-                    *slot = view.position(v);
-                    n += 1;
-                }
-                ring_triangles(&small[..n], &mut triangles);
-            } else {
-                ring_triangles(&view.face_positions(f), &mut triangles);
-            }
-            triangles
-        })
-        .collect();
     let mut result = Selection::new();
-    let (mut ring, mut sides) = (Vec::new(), Vec::new());
-    // Quads split in place get their normals in one parallel pass at the end.
-    let mut split_quads: Vec<FaceId> = Vec::new();
+    let (mut ring, mut sides, mut points) = (Vec::new(), Vec::new(), Vec::new());
+    let mut triangles = Vec::new();
     // Rings up to this size keep their diagonals in a list scanned
     // linearly; longer ones look each up in the disk cycles (cost of the
     // smaller degree) so a 100k-gon stays linear.
     const SCANNED_RING: u32 = 16;
     let mut diagonals: Vec<((u32, u32), EdgeId)> = Vec::new();
-    for (f, triangles) in faces.into_iter().zip(plans) {
-        if triangles.is_empty() {
+    for f in faces {
+        ring.clear();
+        sides.clear();
+        points.clear();
+        for l in mesh.face_loops(f) {
+            let v = mesh.loop_vert(l);
+            ring.push(v);
+            sides.push(mesh.loop_edge(l));
+            points.push(mesh.position(v));
+        }
+        if ring.len() == 3 {
             result.faces.push(f);
             continue;
         }
-        ring.clear();
-        sides.clear();
-        for l in mesh.face_loops(f) {
-            ring.push(mesh.loop_vert(l));
-            sides.push(mesh.loop_edge(l));
-        }
+        ring_triangles(&points, &mut triangles);
         if ring.len() == 4 {
             // A quad splits in place along its diagonal (one edge, one face
             // and two loops, where rebuilding makes two faces and six
@@ -175,12 +152,11 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
                 (ring[3], ring[1])
             };
             let edges_before = mesh.edge_count();
-            let (g, e) = mesh.split_face_starting_at_unrefreshed(f, a, b, ring[0])?;
+            let (g, e) = mesh.split_face_starting_at(f, a, b, ring[0])?;
             if mesh.edge_count() > edges_before {
                 result.edges.push(e);
             }
             result.faces.extend([f, g]);
-            split_quads.extend([f, g]);
             continue;
         }
         let n = ring.len() as u32;
@@ -220,7 +196,6 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
         }
         mesh.kill_face(f)?;
     }
-    mesh.refresh_normals_of(&split_quads);
     result.normalize();
     Ok(result)
 }
