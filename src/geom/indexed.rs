@@ -71,6 +71,12 @@ pub struct IndexedMesh {
     /// Linear RGB colour of each corner (components in [0, 1]), aligned
     /// with `face_indices`; empty: none.
     pub corner_colors: Vec<[f64; 3]>,
+    /// Unit normal of each polygon as its producer stored it (the kernel's
+    /// stored face normals, fresh by construction: the same bits as
+    /// `polygon::unit_normal` of the polygon's corners), zero where the
+    /// polygon is degenerate. Empty, or not one per polygon (polygons
+    /// added since): writers compute flat normals themselves.
+    pub polygon_normals: Vec<[f64; 3]>,
 }
 
 impl IndexedMesh {
@@ -568,6 +574,9 @@ impl IndexedMesh {
         let turn = |p: &mut [f64; 3]| *p = [p[0], p[2], -p[1] + 0.0];
         self.positions.iter_mut().for_each(turn);
         self.corner_normals.iter_mut().for_each(turn);
+        // A turned Newell sum is not the same bits as the sum of turned
+        // corners: writers recompute.
+        self.polygon_normals.clear();
     }
 
     /// The inverse of [`Self::z_up_to_y_up`]: (x, y, z) → (x, −z, y).
@@ -575,6 +584,17 @@ impl IndexedMesh {
         let turn = |p: &mut [f64; 3]| *p = [p[0], -p[2] + 0.0, p[1]];
         self.positions.iter_mut().for_each(turn);
         self.corner_normals.iter_mut().for_each(turn);
+        self.polygon_normals.clear();
+    }
+
+    /// The stored normal of polygon `k`, when the mesh carries one per
+    /// polygon: `Some(None)` for a degenerate polygon.
+    pub(crate) fn stored_normal(&self, k: usize) -> Option<Option<DVec3>> {
+        if self.polygon_normals.len() != self.polygon_count() {
+            return None;
+        }
+        let n = DVec3::from_array(self.polygon_normals[k]);
+        Some((n != DVec3::ZERO).then_some(n))
     }
 
     /// A copy with vertices at most `distance` apart merged (`distance <=

@@ -55,7 +55,7 @@ pub(super) fn tag(mesh: &mut Mesh, made: &Selection, looks: (Option<u32>, Option
 /// shading normals where a part asks for them, texture coordinates where
 /// a part has a projection, and double-sidedness decided.
 pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
-    let mut out = mesh.to_indexed();
+    let mut out = mesh.to_indexed_with_normals();
     let look = &program.look;
     // Wire edges are walked only when the export found some.
     let (mut face_parts, mut line_parts) = element_parts(program, mesh, !out.lines.is_empty());

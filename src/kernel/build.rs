@@ -313,6 +313,18 @@ impl Mesh {
         run(sink).inspect_err(|_| sink.abort())
     }
 
+    /// [`Mesh::to_indexed`] carrying each face's stored normal (fresh by
+    /// construction), so writers need not compute flat normals again.
+    pub fn to_indexed_with_normals(&self) -> IndexedMesh {
+        let mut out = self.to_indexed();
+        out.polygon_normals = self
+            .faces
+            .iter()
+            .map(|(_, face)| face.normal.to_array())
+            .collect();
+        out
+    }
+
     /// The canonical indexed view of the mesh (what the writers take).
     pub fn to_indexed(&self) -> IndexedMesh {
         let mut out = IndexedMesh::new();

@@ -317,6 +317,7 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
             draw.indices.reserve(3 * (corners - 2 * range.len()));
             sharing.next.reserve(corners);
             let position = |v: u32| DVec3::from_array(mesh.positions[v as usize]);
+            let stored = mesh.polygon_normals.len() == mesh.polygon_count();
             let mut block = range.start..range.start;
             while block.end < range.end {
                 block = block.end..(block.end + BLOCK).min(range.end);
@@ -326,12 +327,19 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                 // gives it (the same function).
                 flats.clear();
                 if !smooth {
-                    flats.extend(block.clone().map(|i| match *mesh.polygon(polygon_at(i)) {
-                        [a, b, c] => {
-                            let corners = [position(a), position(b), position(c)];
-                            unit_f32(polygon::unit_normal_of(&corners).unwrap_or(DVec3::Z))
+                    flats.extend(block.clone().map(|i| {
+                        let k = polygon_at(i);
+                        match *mesh.polygon(k) {
+                            // The producer's stored normal is these bits already.
+                            [_, _, _] if stored => {
+                                unit_f32(mesh.stored_normal(k).flatten().unwrap_or(DVec3::Z))
+                            }
+                            [a, b, c] => {
+                                let corners = [position(a), position(b), position(c)];
+                                unit_f32(polygon::unit_normal_of(&corners).unwrap_or(DVec3::Z))
+                            }
+                            _ => [0.0; 3],
                         }
-                        _ => [0.0; 3],
                     }));
                 }
                 for (b, i) in block.clone().enumerate() {
