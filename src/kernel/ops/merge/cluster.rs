@@ -132,13 +132,7 @@ pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
 /// `f64::floor`, which is a library call on baseline x86-64.
 #[inline]
 pub(in crate::kernel::ops) fn cell_coordinate(x: f64, distance: f64) -> i64 {
-    let q = x / distance;
-    let t = q as i64;
-    if (t as f64) > q {
-        t.saturating_sub(1)
-    } else {
-        t
-    }
+    crate::geom::cells::floor_i64(x / distance)
 }
 
 /// Sorts `keys` (of `bits` significant bits), returning the sorted keys
