@@ -416,25 +416,20 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
 }
 
 /// Appends `values` little-endian: one copy on a little-endian machine.
-fn put_f32s(out: &mut Vec<u8>, values: &[f32]) {
+fn put_le<T: bytemuck::Pod>(out: &mut Vec<u8>, values: &[T], le: impl Fn(&T) -> [u8; 4]) {
     if cfg!(target_endian = "little") {
         out.extend_from_slice(bytemuck::cast_slice(values));
     } else {
-        values
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+        values.iter().for_each(|x| out.extend_from_slice(&le(x)));
     }
 }
 
-/// [`put_f32s`] for `u32`s.
+fn put_f32s(out: &mut Vec<u8>, values: &[f32]) {
+    put_le(out, values, |x| x.to_le_bytes());
+}
+
 fn put_u32s(out: &mut Vec<u8>, values: &[u32]) {
-    if cfg!(target_endian = "little") {
-        out.extend_from_slice(bytemuck::cast_slice(values));
-    } else {
-        values
-            .iter()
-            .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
-    }
+    put_le(out, values, |x| x.to_le_bytes());
 }
 
 /// The document: its JSON, made from the buffer's layout, and the

@@ -26,7 +26,7 @@
 use glam::{DAffine3, DQuat, DVec3};
 
 use super::{canonical, OpError};
-use crate::kernel::ids::{FaceId, VertId};
+use crate::kernel::ids::VertId;
 use crate::kernel::mesh::Mesh;
 
 /// Moves every vertex by `offset`.
@@ -103,17 +103,9 @@ fn apply(mesh: &mut Mesh, verts: &[VertId], map: impl Fn(DVec3) -> DVec3) -> Res
                 format!("moving {v} would give a non-finite position"),
             ));
         }
-        moved.push(p);
+        moved.push((v, p));
     }
-    for (&v, &p) in verts.iter().zip(&moved) {
-        mesh.place(v, p);
-    }
-    let mut faces: Vec<FaceId> = verts.iter().flat_map(|&v| mesh.vert_faces(v)).collect();
-    faces.sort_unstable();
-    faces.dedup();
-    for f in faces {
-        mesh.refresh_normal(f);
-    }
+    mesh.move_verts(&moved);
     Ok(())
 }
 
