@@ -8,7 +8,7 @@ TARGET_DIR ?= $(or $(CARGO_TARGET_DIR),target)
 GLTF_VALIDATOR_DIR ?= $(CURDIR)/target/gltf-validator
 THREE_DIR ?= $(CURDIR)/target/three
 
-.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender test-qhull test-boolean fuzz fuzz-smoke clean
+.PHONY: example test unit doc-test examples validate-gltf lint bench bench-peers bench-scaling contact-sheet test-slurm test-blender test-qhull test-boolean test-compressed-gltf fuzz fuzz-smoke clean
 
 ## Run the main job on the bundled chair example: writes out/chair.glb and out/chair.json.
 example:
@@ -72,6 +72,15 @@ test-slurm:
 test-blender:
 	$(CARGO) build --release --quiet
 	GRAFTAL=$(TARGET_DIR)/release/graftal tests/blender/run.sh
+
+## Compressed glTF from real tools (tests/compressed/run.sh): gltfpack's
+## default, -c and -cc (KHR_mesh_quantization, EXT_meshopt_compression) and
+## gltf-pipeline -d (KHR_draco_mesh_compression) on seven examples, read
+## back within the quantisation step. Installs both from npm under target/
+## the first time (~20 s). Not part of `make test`; CI (`.ci/run`) runs it after.
+test-compressed-gltf:
+	$(CARGO) build --release --quiet
+	GRAFTAL=$(TARGET_DIR)/release/graftal tests/compressed/run.sh
 
 ## `convex_hull` against qhull (tests/qhull/run.sh: scipy.spatial.ConvexHull
 ## on 10^4-10^5 random points and degenerate sets; a Python venv with numpy

@@ -398,35 +398,120 @@ impl IndexedMesh {
     }
 
     /// Settles every material whose double-sidedness is undecided: single-
-    /// sided when each edge of the polygons using it is shared by exactly
-    /// two of them in opposite directions (closed, consistently oriented
-    /// shells: back faces are never seen), double-sided otherwise.
+    /// sided when every polygon using it lies on a closed, consistently
+    /// oriented shell (back faces are never seen; docs/rules.md,
+    /// "Materials"), double-sided otherwise. A material's faces need not
+    /// close on their own: a cottage's roof material covers part of a
+    /// closed shell.
     pub fn decide_double_sided(&mut self) {
         if self.materials.iter().all(|m| m.double_sided.is_some()) {
             return;
         }
-        // The quick test for every material in one pass; only a balanced
-        // one is walked again for the exact test.
-        let mut sums = vec![0u64; self.materials.len()];
-        for (k, poly) in self.polygons().enumerate() {
+        let decided = self.double_sided_decided();
+        for (material, double) in self.materials.iter_mut().zip(decided) {
+            material.double_sided = Some(double);
+        }
+    }
+
+    /// Each material's double-sidedness: as set, else decided as
+    /// [`Self::decide_double_sided`] does (a writer given a mesh read from a
+    /// file that does not say, such as OBJ, decides the same way).
+    pub fn double_sided_decided(&self) -> Vec<bool> {
+        let set: Vec<Option<bool>> = self.materials.iter().map(|m| m.double_sided).collect();
+        if set.iter().all(Option::is_some) {
+            return set.into_iter().flatten().collect();
+        }
+        let count = self.materials.len();
+        let mut faces = vec![0usize; count];
+        for k in 0..self.polygon_count() {
             if let Some(m) = self.polygon_material(k) {
-                sums[m as usize] = sums[m as usize].wrapping_add(reversal_sum(poly));
+                faces[m as usize] += 1;
             }
         }
-        for (index, sum) in sums.into_iter().enumerate() {
-            if self.materials[index].double_sided.is_some() {
-                continue;
+        // One material on every face (the common case): its shells are the
+        // whole mesh, and a border anywhere (almost surely an unbalanced
+        // quick sum) settles it in one pass without building shells.
+        if faces.iter().any(|&f| f == self.polygon_count() && f > 0) {
+            let sum = self
+                .polygons()
+                .fold(0u64, |sum, poly| sum.wrapping_add(reversal_sum(poly)));
+            if sum != 0 {
+                return set.iter().map(|d| d.unwrap_or(true)).collect();
             }
-            let closed = sum == 0 && {
-                let polygons = self
-                    .polygons()
-                    .enumerate()
-                    .filter(|&(k, _)| self.polygon_material(k) == Some(index as u32))
-                    .map(|(_, poly)| poly);
-                closed_exactly(self.positions.len(), polygons)
-            };
-            self.materials[index].double_sided = Some(!closed);
         }
+        let closed = self.polygons_on_closed_shells();
+        let mut open = vec![false; count];
+        for (k, &closed) in closed.iter().enumerate() {
+            if let Some(m) = self.polygon_material(k) {
+                open[m as usize] |= !closed;
+            }
+        }
+        set.iter()
+            .enumerate()
+            .map(|(index, d)| d.unwrap_or(faces[index] == 0 || open[index]))
+            .collect()
+    }
+
+    /// Per polygon, whether its shell (the polygons connected to it through
+    /// shared edges) is closed and consistently oriented: every edge of it
+    /// is used as often one way as the other, so the shell bounds a volume
+    /// (two boxes meeting along an edge included). A degenerate edge opens
+    /// its shell. Edges are filed under their lower vertex (a counting
+    /// sort), each vertex's few sorted by their upper one: near-linear.
+    pub(crate) fn polygons_on_closed_shells(&self) -> Vec<bool> {
+        fn edges(poly: &[u32]) -> impl Iterator<Item = (u32, u32)> + '_ {
+            let last = *poly.last().unwrap_or(&0);
+            poly.iter()
+                .scan(last, |a, &b| Some((std::mem::replace(a, b), b)))
+        }
+        let polygons = self.polygon_count();
+        let mut start = vec![0u32; self.positions.len() + 1];
+        for poly in self.polygons() {
+            for (a, b) in edges(poly).filter(|(a, b)| a != b) {
+                start[a.min(b) as usize + 1] += 1;
+            }
+        }
+        for v in 1..start.len() {
+            start[v] += start[v - 1];
+        }
+        // (upper vertex, polygon, written lower → upper) per edge use.
+        let mut uses = vec![(0u32, 0u32, false); *start.last().unwrap_or(&0) as usize];
+        let mut fill = start.clone();
+        let mut open = vec![false; polygons];
+        for (k, poly) in self.polygons().enumerate() {
+            for (a, b) in edges(poly) {
+                if a == b {
+                    open[k] = true;
+                    continue;
+                }
+                let slot = &mut fill[a.min(b) as usize];
+                uses[*slot as usize] = (a.max(b), k as u32, a < b);
+                *slot += 1;
+            }
+        }
+        let mut shells = super::union_find::UnionFind::new(polygons);
+        for v in 0..self.positions.len() {
+            let bucket = &mut uses[start[v] as usize..start[v + 1] as usize];
+            bucket.sort_unstable();
+            for edge in bucket.chunk_by(|x, y| x.0 == y.0) {
+                let forward = edge.iter().filter(|u| u.2).count();
+                if 2 * forward != edge.len() {
+                    open[edge[0].1 as usize] = true;
+                }
+                for u in &edge[1..] {
+                    shells.union(edge[0].1, u.1);
+                }
+            }
+        }
+        let mut open_shell = vec![false; polygons];
+        for k in 0..polygons as u32 {
+            if open[k as usize] {
+                open_shell[shells.find(k) as usize] = true;
+            }
+        }
+        (0..polygons as u32)
+            .map(|k| !open_shell[shells.find(k) as usize])
+            .collect()
     }
 
     /// Vertex scalars in name order, whatever order they are stored in.
@@ -460,60 +545,11 @@ impl IndexedMesh {
     }
 }
 
-/// Whether every edge of `polygons` is met exactly twice, once each way: a
-/// closed, consistently oriented surface. Linear: each vertex's outgoing
-/// half-edges are gathered (counting sort by their start), and each
-/// half-edge a → b must be the only one of its kind and find b → a.
-#[cfg(test)]
-fn closed_and_oriented<'a>(
-    vertices: usize,
-    polygons: impl Iterator<Item = &'a [u32]> + Clone,
-) -> bool {
-    reversal_balanced(polygons.clone()) && closed_exactly(vertices, polygons)
-}
-
-/// [`closed_and_oriented`] without the quick test.
-fn closed_exactly<'a>(vertices: usize, polygons: impl Iterator<Item = &'a [u32]> + Clone) -> bool {
-    let mut start = vec![0u32; vertices + 1];
-    let mut corners = 0usize;
-    for poly in polygons.clone() {
-        for &a in poly {
-            start[a as usize + 1] += 1;
-        }
-        corners += poly.len();
-    }
-    if corners == 0 {
-        return false;
-    }
-    for v in 0..vertices {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut to = vec![0u32; corners];
-    for poly in polygons {
-        for (i, &a) in poly.iter().enumerate() {
-            let b = poly[(i + 1) % poly.len()];
-            if a == b {
-                return false;
-            }
-            to[fill[a as usize] as usize] = b;
-            fill[a as usize] += 1;
-        }
-    }
-    let out = |v: u32| &to[start[v as usize] as usize..start[v as usize + 1] as usize];
-    (0..vertices as u32).all(|a| {
-        let from_a = out(a);
-        from_a.iter().enumerate().all(|(i, &b)| {
-            !from_a[i + 1..].contains(&b) && out(b).iter().filter(|&&c| c == a).count() == 1
-        })
-    })
-}
-
-/// A necessary condition for [`closed_and_oriented`], in one pass without
+/// A necessary condition for a closed, oriented surface, in one pass without
 /// allocating: on a closed, consistently oriented surface each half-edge
 /// a → b meets its reverse b → a, so a sum of a hash of each edge, signed
 /// by its direction, cancels. A border (every open sheet) almost surely
-/// leaves it unbalanced; only a balanced set goes on to the exact test.
+/// leaves it unbalanced.
 #[cfg(test)]
 fn reversal_balanced<'a>(polygons: impl Iterator<Item = &'a [u32]>) -> bool {
     polygons.fold(0u64, |sum, poly| sum.wrapping_add(reversal_sum(poly))) == 0
@@ -774,30 +810,52 @@ impl VertexMerger {
 mod tests {
     use super::*;
 
-    #[test]
-    fn closedness_needs_every_half_edge_once_and_its_twin() {
-        const TETRA: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
-        let closed = |polys: &[[u32; 3]]| {
-            let polys: Vec<&[u32]> = polys.iter().map(|p| &p[..]).collect();
-            let exact = closed_and_oriented(4, polys.iter().copied());
-            // The quick test never rejects a closed surface.
-            assert!(!exact || reversal_balanced(polys.iter().copied()));
-            exact
+    /// An indexed mesh of `polys` over `vertices` points (positions unused).
+    fn shells(vertices: usize, polys: &[&[u32]]) -> Vec<bool> {
+        let mut m = IndexedMesh {
+            positions: vec![[0.0; 3]; vertices],
+            ..Default::default()
         };
-        assert!(closed(&TETRA));
-        // Open: a face missing (a border), or no faces at all.
-        assert!(!closed(&TETRA[..3]));
-        assert!(!reversal_balanced(TETRA[..3].iter().map(|p| &p[..])));
-        assert!(!closed(&[]));
+        for p in polys {
+            m.push_polygon(p);
+        }
+        m.polygons_on_closed_shells()
+    }
+
+    #[test]
+    fn closed_shells_use_every_edge_as_often_each_way() {
+        const TETRA: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+        let tetra = |offset: u32| TETRA.map(|t| t.map(|v| v + offset));
+        let (a, b) = (tetra(0), tetra(4));
+        fn all(p: &[[u32; 3]]) -> Vec<&[u32]> {
+            p.iter().map(|t| &t[..]).collect()
+        }
+        assert_eq!(shells(4, &all(&a)), vec![true; 4]);
+        // The quick test never rejects a closed surface.
+        assert!(reversal_balanced(a.iter().map(|p| &p[..])));
+        // Open: a face missing (a border) opens only its own shell.
+        let mut two: Vec<[u32; 3]> = a[..3].to_vec();
+        two.extend(b);
+        assert_eq!(
+            shells(8, &all(&two)),
+            [vec![false; 3], vec![true; 4]].concat()
+        );
+        assert!(!reversal_balanced(a[..3].iter().map(|p| &p[..])));
         // One face wound the other way.
-        let mut flipped = TETRA;
+        let mut flipped = a;
         flipped[0] = [0, 1, 2];
-        assert!(!closed(&flipped));
-        // Balanced but not closed: every half-edge twice (a doubled shell),
-        // which only the exact test catches.
-        let doubled: Vec<[u32; 3]> = TETRA.iter().chain(&TETRA).copied().collect();
-        assert!(reversal_balanced(doubled.iter().map(|p| &p[..])));
-        assert!(!closed(&doubled));
+        assert_eq!(shells(4, &all(&flipped)), vec![false; 4]);
+        // Two closed shells meeting along an edge (vertices 0 and 1 shared):
+        // each edge is still used as often each way.
+        let joined = [
+            a,
+            tetra(4).map(|t| t.map(|v| if v < 6 { v - 4 } else { v })),
+        ]
+        .concat();
+        assert_eq!(shells(8, &all(&joined)), vec![true; 8]);
+        // A degenerate edge opens its shell; no polygons, no shells.
+        assert_eq!(shells(3, &[&[0, 1, 1, 2]]), vec![false]);
+        assert!(shells(0, &[]).is_empty());
     }
 
     #[test]

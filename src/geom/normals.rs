@@ -135,6 +135,26 @@ fn smooth_polygons(
     out
 }
 
+/// A normal as a file gives it, made unit only where it is not already:
+/// one that is unit to `f32` precision is kept bit for bit, so reading
+/// what graftal wrote and writing it again changes no byte (a second
+/// normalisation moves the last bits every round). `None` for a zero or
+/// non-finite vector.
+pub fn unit_as_read(v: DVec3) -> Option<DVec3> {
+    /// |v|² − 1 of a unit `f64` vector rounded to `f32` is under 2⁻²³;
+    /// a file printed to 6 digits is off by about 10⁻⁶ and is normalised.
+    const UNIT_TOLERANCE: f64 = 1.0 / (1u64 << 22) as f64;
+    if !v.is_finite() || v == DVec3::ZERO {
+        return None;
+    }
+    let length_squared = v.length_squared();
+    if (length_squared - 1.0).abs() <= UNIT_TOLERANCE {
+        Some(v)
+    } else {
+        v.try_normalize()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,17 +1,20 @@
 //! Wavefront OBJ.
 //!
-//! Writing: a `# graftal` header, then `v x y z` per vertex, `f a b c ...` per polygon (1-based,
-//! n-gons kept) and `l a b` per wire edge. Vertex scalars are not written (OBJ has no place for
-//! them).
+//! Writing: a `# graftal` header, a `mtllib` line when there are materials, then `v x y z` per
+//! vertex, `vt`/`vn` values when the mesh has UVs or corner normals, `f a b c ...` per polygon
+//! (1-based, n-gons kept) grouped by part (`o`) and material (`usemtl`), and `l a b` per wire
+//! edge. Numbers are the shortest `f64` text that reads back to the same bits. Vertex scalars
+//! are not written (OBJ has no place for them).
 //!
 //! Reading is a small purpose-built parser rather than `tobj`: tobj renumbers vertices per
 //! object in first-use order (dropping unused ones and splitting shared ones), stores `f32`
 //! unless built with `use_f64`, and reports index errors without line numbers. This parser keeps
-//! original vertex numbering and full `f64` precision, reads `v`, `f`/`fo` (n-gons, `v/vt/vn`
-//! references, negative relative indices), and `l` polylines (split into edges); every other
-//! statement (`vt`, `vn`, `o`, `g`, `s`, `usemtl`, `mtllib`, `p`, ...) is ignored. Comments (`#`)
-//! and `\` line continuations are handled. Forward references to vertices defined later are
-//! accepted and checked at the end.
+//! original vertex numbering and full `f64` precision, reads `v`, `vt`, `vn` (kept bit for bit
+//! where unit: `geom::normals::unit_as_read`), `f`/`fo` (n-gons, `v/vt/vn` references, negative
+//! relative indices), `l` polylines (split into edges), `o`/`g` (parts), `usemtl` and `mtllib`
+//! (materials, numbered in the order the library declares them, as the writer wrote them);
+//! other statements (`s`, `p`, ...) are ignored. Comments (`#`) and `\` line continuations are
+//! handled. Forward references to vertices defined later are accepted and checked at the end.
 
 use std::path::Path;
 
@@ -20,6 +23,7 @@ use glam::DVec3;
 use super::{parse_f64, push_f64, push_u64, text_lines, IoError};
 use crate::geom::indexed::IndexedMesh;
 use crate::geom::material::sanitize_name;
+use crate::geom::normals::unit_as_read;
 
 /// Encodes `mesh` as OBJ text (no material library named).
 pub fn encode(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
@@ -221,13 +225,47 @@ pub fn decode_with(
     }
     let libraries = std::mem::take(&mut parser.looks.libraries);
     let mut mesh = parser.finish()?;
+    let mut declared = Vec::new();
     for library in libraries {
         // At most 16 MiB of material library: names and a few numbers.
         if let Ok(text) = resolve(&library, 16 << 20) {
-            read_mtl(&text, &mut mesh.materials);
+            read_mtl(&text, &mut mesh.materials, &mut declared);
         }
     }
+    order_as_declared(&mut mesh, &declared);
     Ok(mesh)
+}
+
+/// Numbers the materials in the order their library declares them (the
+/// writer's order), then the undeclared ones in first-use order: faces are
+/// written grouped by part, so first use alone would reorder the materials
+/// of a file graftal wrote, and a second conversion would not be a fixed
+/// point.
+fn order_as_declared(mesh: &mut IndexedMesh, declared: &[usize]) {
+    let count = mesh.materials.len();
+    let mut order: Vec<usize> = Vec::with_capacity(count);
+    let mut placed = vec![false; count];
+    for &i in declared {
+        if !std::mem::replace(&mut placed[i], true) {
+            order.push(i);
+        }
+    }
+    order.extend((0..count).filter(|&i| !placed[i]));
+    if order.iter().enumerate().all(|(k, &i)| k == i) {
+        return;
+    }
+    let mut new_index = vec![0u32; count];
+    for (k, &i) in order.iter().enumerate() {
+        new_index[i] = k as u32;
+    }
+    let mut old = std::mem::take(&mut mesh.materials);
+    mesh.materials = order
+        .iter()
+        .map(|&i| std::mem::replace(&mut old[i], crate::geom::Material::fallback()))
+        .collect();
+    for m in &mut mesh.polygon_materials {
+        *m = new_index[*m as usize];
+    }
 }
 
 /// Materials, parts and corner values as the statements give them.
@@ -275,7 +313,7 @@ fn intern(names: &mut Vec<String>, name: String) -> u32 {
 /// Fills the values of `materials` from a `.mtl` library's `newmtl`
 /// blocks (`Kd`, `d`/`Tr`, `Ke`, `Pm`, `Pr`; others ignored); unknown
 /// materials and malformed lines are skipped.
-fn read_mtl(text: &[u8], materials: &mut [crate::geom::Material]) {
+fn read_mtl(text: &[u8], materials: &mut [crate::geom::Material], declared: &mut Vec<usize>) {
     let mut current: Option<usize> = None;
     for (_, raw) in text_lines(text) {
         let content = match raw.iter().position(|&b| b == b'#') {
@@ -292,6 +330,7 @@ fn read_mtl(text: &[u8], materials: &mut [crate::geom::Material]) {
         if keyword == b"newmtl" {
             let name = sanitize_name(&String::from_utf8_lossy(&rest.join(&b' ')), "material");
             current = materials.iter().position(|m| m.name == name);
+            declared.extend(current);
             continue;
         }
         let Some(m) = current.map(|i| &mut materials[i]) else {
@@ -396,8 +435,10 @@ impl Parser<'_> {
             }
             b"vn" => {
                 let n = DVec3::from_array(self.numbers(line, "normal", tokens)?);
-                // Unit length (files often round), +Z where degenerate.
-                let n = n.try_normalize().unwrap_or(DVec3::Z);
+                // Unit length (files often round; kept bit for bit where
+                // already unit, so a second conversion changes nothing), +Z
+                // where degenerate.
+                let n = unit_as_read(n).unwrap_or(DVec3::Z);
                 self.looks.normals.push(n.to_array());
                 Ok(())
             }

@@ -1,8 +1,9 @@
 //! STL, ASCII and binary.
 //!
 //! Writing triangulates every polygon with [`crate::geom::polygon::triangulate`]. Each facet
-//! normal is the triangle's unit normal, or the polygon's unit Newell normal when the triangle
-//! is degenerate, or `0 0 0` when both are. Wire edges and vertex scalars are not written.
+//! normal is a triangle's stored normal (`IndexedMesh::polygon_normals`: as read from an STL, or
+//! the kernel's), else the triangle's unit normal, or the polygon's unit Newell normal when the
+//! triangle is degenerate, or `0 0 0` when both are. Wire edges and vertex scalars are not written.
 //! The binary header is `graftal binary STL` padded with spaces to 80 bytes; binary values are
 //! `f32` (coordinates beyond the `f32` range are an error). ASCII values are printed in the
 //! canonical shortest round-trip `f64` form.
@@ -10,7 +11,9 @@
 //! Reading detects the variant by content: binary when the size is exactly
 //! `84 + 50 * triangle_count`, otherwise ASCII when the text starts with `solid` (several solids
 //! are concatenated). Bitwise-equal corner positions (with `-0 == 0`) are merged into one vertex,
-//! numbered by first appearance, to recover the topology.
+//! numbered by first appearance, to recover the topology. Facet normals are kept as the
+//! triangles' stored normals (bit for bit where unit; computed where a file writes `0 0 0`), so
+//! converting an STL into STL again changes no byte.
 
 use std::path::Path;
 
@@ -18,6 +21,7 @@ use glam::DVec3;
 
 use super::{parse_f64, push_f64, text_lines, IoError};
 use crate::geom::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
+use crate::geom::normals::unit_as_read;
 use crate::geom::polygon;
 
 const HEADER: &[u8; 18] = b"graftal binary STL";
@@ -25,9 +29,15 @@ const HEADER: &[u8; 18] = b"graftal binary STL";
 /// Calls `emit(normal, [a, b, c])` for every triangle of every polygon, in order.
 fn for_each_triangle(mesh: &IndexedMesh, mut emit: impl FnMut(DVec3, [DVec3; 3])) {
     let mut tri = PolygonTriangulator::default();
-    for poly in mesh.polygons() {
+    for (k, poly) in mesh.polygons().enumerate() {
         let poly_normal = tri.run(mesh, poly);
         if let [p0, p1, p2] = tri.points[..] {
+            // A triangle's normal as read or as its producer stored it
+            // (a file's facet normal comes back unchanged).
+            if let Some(Some(stored)) = mesh.stored_normal(k) {
+                emit(stored, [p0, p1, p2]);
+                continue;
+            }
             // A triangle's own normal is the polygon's: the same points, and
             // `unit_normal_of` (which `run` uses) gives `unit_normal`'s bits.
             emit(poly_normal.unwrap_or(DVec3::ZERO), [p0, p1, p2]);
@@ -159,18 +169,18 @@ fn decode_binary(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
     let mut mesh = IndexedMesh::new();
     mesh.face_indices.reserve(count * 3);
     mesh.face_starts.reserve(count);
+    let mut facet_normals = Vec::with_capacity(count);
     for (t, record) in bytes[84..].chunks_exact(50).enumerate() {
+        let value = |at: usize| {
+            f32::from_le_bytes([record[at], record[at + 1], record[at + 2], record[at + 3]])
+        };
+        facet_normals.push([0, 4, 8].map(|at| f64::from(value(at))));
         let mut tri = [0u32; 3];
         for (k, slot) in tri.iter_mut().enumerate() {
             let mut p = [0.0f64; 3];
             for (axis, c) in p.iter_mut().enumerate() {
                 let at = 12 + 12 * k + 4 * axis;
-                let value = f32::from_le_bytes([
-                    record[at],
-                    record[at + 1],
-                    record[at + 2],
-                    record[at + 3],
-                ]);
+                let value = value(at);
                 if !value.is_finite() {
                     return Err(IoError::Malformed {
                         path: path.to_path_buf(),
@@ -187,7 +197,31 @@ fn decode_binary(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
         mesh.push_polygon(&tri);
     }
     mesh.positions = merger.positions;
+    keep_facet_normals(&mut mesh, &facet_normals);
     Ok(mesh)
+}
+
+/// Each facet's normal as the file gives it (bit for bit where it is unit,
+/// `unit_as_read`), else the facet's own: the writer puts it back, so a
+/// second conversion changes no byte. Files that write `0 0 0` get
+/// computed normals.
+fn keep_facet_normals(mesh: &mut IndexedMesh, read: &[[f64; 3]]) {
+    let normals = mesh
+        .polygons()
+        .zip(read)
+        .map(|(poly, &n)| {
+            unit_as_read(DVec3::from_array(n))
+                .or_else(|| {
+                    let corners: Vec<DVec3> = poly
+                        .iter()
+                        .map(|&v| DVec3::from_array(mesh.positions[v as usize]))
+                        .collect();
+                    polygon::unit_normal(&corners)
+                })
+                .map_or([0.0; 3], |n| n.to_array())
+        })
+        .collect();
+    mesh.polygon_normals = normals;
 }
 
 fn too_many(path: &Path) -> IoError {
@@ -222,6 +256,7 @@ fn decode_ascii(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
     let mut state = State::Outside;
     let mut corners: Vec<u32> = Vec::new();
     let mut facets = 0usize;
+    let mut facet_normals = Vec::new();
     let mut last_line = 0;
     for (line_no, line) in text_lines(bytes) {
         last_line = line_no;
@@ -237,6 +272,18 @@ fn decode_ascii(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
             State::Solid if is(b"facet") => {
                 state = State::Facet;
                 corners.clear();
+                // `facet normal nx ny nz`; a missing or unreadable normal is
+                // computed instead.
+                let mut normal = [f64::NAN; 3];
+                if tokens
+                    .next()
+                    .is_some_and(|t| t.eq_ignore_ascii_case(b"normal"))
+                {
+                    for (c, token) in normal.iter_mut().zip(tokens.by_ref()) {
+                        *c = parse_f64(token).unwrap_or(f64::NAN);
+                    }
+                }
+                facet_normals.push(normal);
             }
             State::Solid if is(b"endsolid") => state = State::Outside,
             State::Facet if is(b"outer") => state = State::Loop,
@@ -302,6 +349,7 @@ fn decode_ascii(bytes: &[u8], path: &Path) -> Result<IndexedMesh, IoError> {
         ));
     }
     mesh.positions = merger.positions;
+    keep_facet_normals(&mut mesh, &facet_normals);
     Ok(mesh)
 }
 

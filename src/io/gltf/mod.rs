@@ -7,10 +7,13 @@
 //! (x, z, −y), and read back as (x, −z, y), so a round trip is exact and a
 //! model stands upright in every viewer.
 //!
-//! * Surface primitive (mode TRIANGLES, only if there are polygons): flat shaded. Each polygon's
-//!   vertices are duplicated and carry the polygon's unit Newell normal (`(0, 0, 1)` for
-//!   degenerate polygons), renormalized in `f32`; the polygon is split with
-//!   [`crate::geom::polygon::triangulate`].
+//! * Surface primitive (mode TRIANGLES, only if there are polygons): flat shaded unless the mesh
+//!   carries corner normals. A flat polygon's vertices carry its unit Newell normal (`(0, 0, 1)`
+//!   for degenerate polygons); every normal, UV and colour is rounded to `f32` once from the
+//!   `f64` value read or computed (never renormalised in `f32`, which moves the last bit on
+//!   every pass). The polygon is split with [`crate::geom::polygon::triangulate`]; vertices are
+//!   numbered in the order the triangles first use them, so reading the file back and writing
+//!   it again gives the same bytes.
 //! * Wire primitive (mode LINES, only if there are lines): its own vertices, the ones the lines
 //!   use, numbered in first-use order.
 //! * Attributes: `POSITION` (f32, `min`/`max` from the written `f32` values), `NORMAL` (surface
@@ -33,12 +36,17 @@
 //!
 //! The default scene (else the first scene, else every root node) is traversed with node
 //! transforms applied (in `f64`). Primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN
-//! become triangles; LINES, LINE_STRIP and LINE_LOOP become lines; POINTS are ignored.
+//! become triangles; LINES, LINE_STRIP and LINE_LOOP become lines; POINTS are ignored. A normal
+//! that is unit to `f32` precision is kept bit for bit (`geom::normals::unit_as_read`), others
+//! are normalised.
 //! Bitwise-equal transformed positions are merged (first-appearance numbering), so flat-shaded
 //! files come back connected. Float SCALAR `_NAME` attributes become vertex scalars named in
 //! lower case (a merged vertex takes the first value seen; vertices without one get 0).
 //! Buffers come from the GLB binary chunk, base64 `data:` URIs, or files relative to the
-//! `.gltf` file's directory. Sparse and non-float position accessors are not supported.
+//! `.gltf` file's directory. Sparse accessors are not supported. Quantised attributes
+//! (`KHR_mesh_quantization`) are dequantised as the spec says; views compressed with
+//! `EXT_meshopt_compression` are decoded first (`meshopt_views`), and primitives compressed
+//! with `KHR_draco_mesh_compression` decoded into their accessors' bytes (`draco_primitives`).
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -51,6 +59,8 @@ use super::IoError;
 use crate::geom::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
 
 mod base64;
+mod draco_primitives;
+mod meshopt_views;
 mod reader;
 #[cfg(test)]
 mod tests;

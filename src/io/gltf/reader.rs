@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::geom::material::{sanitize_name, AlphaMode, Material};
+use crate::geom::normals::unit_as_read;
 
 /// Decodes `.gltf` JSON or `.glb` (detected by the `glTF` magic); `path` names the file in
 /// errors. External buffer files are refused: see [`decode_with`].
@@ -27,6 +28,8 @@ pub fn decode_with(
     let mut value: json::Value = serde_json::from_slice(json_bytes)
         .map_err(|e| malformed(format!("invalid glTF JSON: {e}")))?;
     let custom = take_custom_attributes(&mut value);
+    let compression = meshopt_views::take_compression(&mut value).map_err(&malformed)?;
+    let draco = draco_primitives::take_draco(&mut value).map_err(&malformed)?;
     // glTF allows scenes without `nodes` (our empty files have one); gltf-json requires it.
     if let Some(scenes) = value.get_mut("scenes").and_then(|s| s.as_array_mut()) {
         for scene in scenes {
@@ -45,8 +48,13 @@ pub fn decode_with(
             root.asset.version
         )));
     }
-    // Quantized attributes are read (positions; the rest is not used).
-    const READ_EXTENSIONS: &[&str] = &["KHR_mesh_quantization"];
+    // Quantized attributes are dequantized as the spec says; compressed
+    // bufferViews are decoded before any accessor reads them.
+    const READ_EXTENSIONS: &[&str] = &[
+        "KHR_mesh_quantization",
+        "EXT_meshopt_compression",
+        "KHR_draco_mesh_compression",
+    ];
     if let Some(ext) = root
         .extensions_required
         .iter()
@@ -54,10 +62,16 @@ pub fn decode_with(
     {
         return Err(malformed(format!("requires unsupported extension {ext}")));
     }
-    let buffers = load_buffers(&root, blob, path, resolve)?;
+    let buffers = load_buffers(&root, blob, &compression.fallback_buffers, path, resolve)?;
+    let decoded_views =
+        meshopt_views::decode_views(&compression.views, &buffers).map_err(&malformed)?;
+    let decoded_accessors =
+        draco_primitives::decode_accessors(&draco, &root, &custom, &buffers).map_err(malformed)?;
     Reader {
         root: &root,
         buffers: &buffers,
+        decoded_views: &decoded_views,
+        decoded_accessors: &decoded_accessors,
         custom: &custom,
         path,
     }
@@ -163,6 +177,7 @@ pub(super) fn take_custom_attributes(value: &mut json::Value) -> Vec<Vec<Vec<(St
 pub(super) fn load_buffers<'a>(
     root: &json::Root,
     blob: Option<&'a [u8]>,
+    fallback: &[bool],
     path: &Path,
     resolve: &mut crate::io::Resolve,
 ) -> Result<Vec<Cow<'a, [u8]>>, IoError> {
@@ -172,6 +187,12 @@ pub(super) fn load_buffers<'a>(
     };
     let mut buffers = Vec::with_capacity(root.buffers.len());
     for (i, buffer) in root.buffers.iter().enumerate() {
+        if fallback.get(i) == Some(&true) {
+            // EXT_meshopt_compression's fallback: only compressed views
+            // point into it, and they are read from their compressed buffer.
+            buffers.push(Cow::Borrowed(&[][..]));
+            continue;
+        }
         let data: Cow<[u8]> =
             match buffer.uri.as_deref() {
                 None => Cow::Borrowed(blob.ok_or_else(|| {
@@ -301,6 +322,10 @@ pub(super) fn transform(m: &Mat4, p: [f32; 3]) -> [f64; 3] {
 pub(super) struct Reader<'a> {
     root: &'a json::Root,
     buffers: &'a [Cow<'a, [u8]>],
+    /// Per bufferView, its bytes when it was stored compressed.
+    decoded_views: &'a [Option<Vec<u8>>],
+    /// Per accessor, its bytes when its primitive was Draco-compressed.
+    decoded_accessors: &'a [Option<Vec<u8>>],
     custom: &'a [Vec<Vec<(String, u64)>>],
     path: &'a Path,
 }
@@ -804,8 +829,9 @@ impl Reader<'_> {
                         f64::from(n[3 * v + 1]),
                         f64::from(n[3 * v + 2]),
                     );
-                    let world = (cofactor * local).normalize_or_zero();
-                    (world != DVec3::ZERO && world.is_finite()).then(|| world.to_array())
+                    // Kept as read where it is unit already (an identity
+                    // node): converting again then changes no bit.
+                    unit_as_read(cofactor * local).map(|n| n.to_array())
                 }));
                 looks.uvs.push(uvs.as_ref().and_then(|(t, _)| {
                     let (s, tt) = (f64::from(t[2 * v]), f64::from(t[2 * v + 1]));
@@ -863,6 +889,12 @@ impl Reader<'_> {
         if count == 0 {
             return Ok((&[], size * dims, 0, component, dims));
         }
+        if let (None, Some(Some(decoded))) = (acc.buffer_view, self.decoded_accessors.get(index)) {
+            if decoded.len() as u64 != (size * dims) as u64 * count as u64 {
+                return Err(err("does not match its decoded Draco data".into()));
+            }
+            return Ok((decoded, size * dims, count, component, dims));
+        }
         let view_index = acc
             .buffer_view
             .ok_or_else(|| err("has no bufferView".into()))?
@@ -872,10 +904,18 @@ impl Reader<'_> {
             .buffer_views
             .get(view_index)
             .ok_or_else(|| err(format!("bufferView {view_index} does not exist")))?;
-        let buffer = self
-            .buffers
-            .get(view.buffer.value())
-            .ok_or_else(|| err(format!("buffer {} does not exist", view.buffer.value())))?;
+        let (buffer, view_start, view_length) =
+            match self.decoded_views.get(view_index) {
+                // Decoded: the bytes are the view's own, from its start.
+                Some(Some(decoded)) => (&decoded[..], 0, decoded.len() as u64),
+                _ => (
+                    &self.buffers.get(view.buffer.value()).ok_or_else(|| {
+                        err(format!("buffer {} does not exist", view.buffer.value()))
+                    })?[..],
+                    view.byte_offset.map_or(0, |o| o.0),
+                    view.byte_length.0,
+                ),
+            };
         let element = size * dims;
         let stride = view.byte_stride.map_or(element, |s| s.0);
         if stride < element {
@@ -883,8 +923,7 @@ impl Reader<'_> {
                 "byteStride {stride} is smaller than an element"
             )));
         }
-        let view_start = view.byte_offset.map_or(0, |o| o.0);
-        let view_end = view_start.checked_add(view.byte_length.0);
+        let view_end = view_start.checked_add(view_length);
         let start = view_start.checked_add(acc.byte_offset.map_or(0, |o| o.0));
         let needed = (stride as u64)
             .checked_mul(count as u64 - 1)
@@ -895,8 +934,7 @@ impl Reader<'_> {
         if view_end > buffer.len() as u64 || start.checked_add(needed).is_none_or(|e| e > view_end)
         {
             return Err(err(format!(
-                "{count} elements do not fit in bufferView {view_index} ({} bytes from byte {view_start}) / buffer of {} bytes",
-                view.byte_length.0,
+                "{count} elements do not fit in bufferView {view_index} ({view_length} bytes from byte {view_start}) / buffer of {} bytes",
                 buffer.len()
             )));
         }

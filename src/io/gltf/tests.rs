@@ -343,8 +343,8 @@ fn quantized_positions_are_read() {
     let m = decode(&doc(5123, true, &[]), p()).unwrap();
     assert_eq!(m.positions[1][0], 2.0 * f64::from(32767.0f32 / 65535.0));
     // Other required extensions are still refused.
-    let e = decode(&doc(5122, true, &["KHR_draco_mesh_compression"]), p()).unwrap_err();
-    assert!(e.to_string().contains("KHR_draco_mesh_compression"), "{e}");
+    let e = decode(&doc(5122, true, &["KHR_texture_basisu"]), p()).unwrap_err();
+    assert!(e.to_string().contains("KHR_texture_basisu"), "{e}");
 }
 
 #[test]
@@ -476,12 +476,12 @@ fn errors_are_specific() {
         .to_string();
     assert!(e.contains("unsupported glTF version"), "{e}");
     let e = decode(
-        br#"{"asset":{"version":"2.0"},"extensionsRequired":["KHR_draco_mesh_compression"]}"#,
+        br#"{"asset":{"version":"2.0"},"extensionsRequired":["KHR_texture_basisu"]}"#,
         p(),
     )
     .unwrap_err()
     .to_string();
-    assert!(e.ends_with("requires unsupported extension KHR_draco_mesh_compression"));
+    assert!(e.ends_with("requires unsupported extension KHR_texture_basisu"));
     let bad_uri = br#"{"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"data:application/octet-stream;base64,@@@@"}]}"#;
     let e = decode(bad_uri, p()).unwrap_err().to_string();
     assert!(e.ends_with("buffer 0: invalid base64 in data URI"), "{e}");
@@ -680,4 +680,161 @@ fn a_primitive_naming_a_missing_material_reads_with_the_default() {
     let names: Vec<&str> = back.materials.iter().map(|m| m.name.as_str()).collect();
     assert_eq!(names, ["wood", "gltf_default"]);
     assert_eq!(back.polygon_materials, vec![1]);
+}
+
+/// `glb` rewritten as `gltfpack -c` stores it: every bufferView compressed
+/// by meshoptimizer's codecs (ATTRIBUTES, or TRIANGLES for index views)
+/// into buffer 0, the views themselves pointing into a fallback buffer 1
+/// that holds no data.
+fn meshopt_compressed(glb: &[u8]) -> Vec<u8> {
+    let (json_bytes, blob) = split_glb(glb, p()).unwrap();
+    let blob = blob.unwrap();
+    let mut doc: json::Value = serde_json::from_slice(json_bytes).unwrap();
+    // Each view's element size, from an accessor that reads it.
+    let mut element = BTreeMap::new();
+    for acc in doc["accessors"].as_array().unwrap() {
+        let size = match acc["componentType"].as_u64().unwrap() {
+            5120 | 5121 => 1,
+            5122 | 5123 => 2,
+            _ => 4,
+        };
+        let dims = match acc["type"].as_str().unwrap() {
+            "SCALAR" => 1,
+            "VEC2" => 2,
+            "VEC3" => 3,
+            _ => 4,
+        };
+        element.insert(
+            acc["bufferView"].as_u64().unwrap(),
+            (size * dims, dims == 1),
+        );
+    }
+    let mut packed = Vec::new();
+    for (i, view) in doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .enumerate()
+    {
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let length = view["byteLength"].as_u64().unwrap() as usize;
+        let data = &blob[start..start + length];
+        let (stride, scalar) = element[&(i as u64)];
+        let index_view = view["target"] == 34963 && scalar;
+        let (encoded, mode) = if index_view {
+            let indices: Vec<u32> = if stride == 2 {
+                data.chunks_exact(2)
+                    .map(|c| u32::from(u16::from_le_bytes([c[0], c[1]])))
+                    .collect()
+            } else {
+                data.chunks_exact(4)
+                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect()
+            };
+            let vertices = indices.iter().max().map_or(0, |&m| m as usize + 1);
+            // One stream, decoded to 16- or 32-bit indices as the stride says.
+            let encoded = ::meshopt::encode_index_buffer(&indices, vertices).unwrap();
+            (encoded, "TRIANGLES")
+        } else {
+            assert_eq!(stride % 4, 0);
+            let words: Vec<[u8; 4]> = data
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect();
+            let encoded = match stride / 4 {
+                1 => ::meshopt::encode_vertex_buffer(&words).unwrap(),
+                2 => ::meshopt::encode_vertex_buffer(
+                    &words
+                        .chunks_exact(2)
+                        .map(|c| [c[0], c[1]])
+                        .collect::<Vec<_>>(),
+                )
+                .unwrap(),
+                3 => ::meshopt::encode_vertex_buffer(
+                    &words
+                        .chunks_exact(3)
+                        .map(|c| [c[0], c[1], c[2]])
+                        .collect::<Vec<_>>(),
+                )
+                .unwrap(),
+                n => panic!("stride of {n} words"),
+            };
+            (encoded, "ATTRIBUTES")
+        };
+        view["buffer"] = 1.into();
+        view["extensions"] = serde_json::json!({"EXT_meshopt_compression": {
+            "buffer": 0, "byteOffset": packed.len(), "byteLength": encoded.len(),
+            "byteStride": stride, "count": length / stride, "mode": mode}});
+        packed.extend_from_slice(&encoded);
+        packed.resize(packed.len().next_multiple_of(4), 0);
+    }
+    let fallback = blob.len();
+    doc["buffers"] = serde_json::json!([
+        {"byteLength": packed.len()},
+        {"byteLength": fallback, "extensions": {"EXT_meshopt_compression": {"fallback": true}}}
+    ]);
+    doc["extensionsUsed"] = serde_json::json!(["EXT_meshopt_compression"]);
+    doc["extensionsRequired"] = serde_json::json!(["EXT_meshopt_compression"]);
+    let mut json_text = serde_json::to_vec(&doc).unwrap();
+    json_text.resize(json_text.len().next_multiple_of(4), b' ');
+    let mut out = b"glTF".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((28 + json_text.len() + packed.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(json_text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json_text);
+    out.extend_from_slice(&(packed.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&packed);
+    out
+}
+
+#[test]
+fn meshopt_compressed_views_read_as_the_uncompressed_file() {
+    // Positions, normals, texture coordinates, colours, scalars, 16-bit
+    // triangle indices and a wire primitive: every kind of view we write.
+    let mut mesh = test_meshes::cube_with_wire();
+    let corners = mesh.face_indices.len();
+    mesh.corner_uvs = (0..corners).map(|c| [c as f64 / 7.0, 0.25]).collect();
+    mesh.corner_colors = (0..corners)
+        .map(|c| [0.5, (c % 3) as f64 / 2.0, 1.0])
+        .collect();
+    let plain = encode_glb(&mesh).unwrap();
+    let packed = meshopt_compressed(&plain);
+    let expected = decode(&plain, p()).unwrap();
+    let back = decode(&packed, p()).unwrap();
+    assert_eq!(back.positions, expected.positions);
+    assert_eq!(back.face_indices, expected.face_indices);
+    assert_eq!(back.lines, expected.lines);
+    assert_eq!(back.corner_normals, expected.corner_normals);
+    assert_eq!(back.corner_uvs, expected.corner_uvs);
+    assert_eq!(back.corner_colors, expected.corner_colors);
+    assert_eq!(back.vertex_scalars, expected.vertex_scalars);
+    // And writing it again gives the uncompressed file's bytes.
+    assert_eq!(encode_glb(&back).unwrap(), encode_glb(&expected).unwrap());
+
+    // A count the compressed bytes cannot hold is refused before decoding.
+    let (json_bytes, _) = split_glb(&packed, p()).unwrap();
+    let text = String::from_utf8(json_bytes.to_vec()).unwrap();
+    // The first compressed view's count (not an accessor's).
+    let ext = text
+        .find("\"EXT_meshopt_compression\":{\"buffer\"")
+        .unwrap();
+    let at = ext + text[ext..].find("\"count\":").unwrap() + "\"count\":".len();
+    let hostile = format!("{}4000000000{}", &text[..at], &text[at..]);
+    let mut bytes = packed.clone();
+    bytes.splice(20..20 + json_bytes.len(), hostile.bytes());
+    let new_len = (bytes.len() as u32).to_le_bytes();
+    bytes[8..12].copy_from_slice(&new_len);
+    let chunk = (hostile.len() as u32).to_le_bytes();
+    bytes[12..16].copy_from_slice(&chunk);
+    let message = decode(&bytes, p()).unwrap_err().to_string();
+    assert!(message.contains("EXT_meshopt_compression"), "{message}");
+    // Garbage where the compressed stream should be is an error, not a panic.
+    let mut broken = packed.clone();
+    let bin = 20 + json_bytes.len() + 8;
+    for b in &mut broken[bin..bin + 16] {
+        *b = 0xff;
+    }
+    assert!(decode(&broken, p()).is_err());
 }

@@ -50,22 +50,26 @@ pub fn encode_glb(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
 }
 
 pub(super) fn to_f32(p: [f64; 3]) -> [f32; 3] {
-    // Range checked by the caller; -0 is normalized so equal geometry gives equal bytes.
-    p.map(|c| if c == 0.0 { 0.0 } else { c as f32 })
-}
-
-/// `f32` copy of a unit vector, renormalized in `f32` so its length is 1 to f32 precision.
-pub(super) fn unit_f32(v: DVec3) -> [f32; 3] {
-    let c = v.to_array().map(|x| x as f32);
-    let len = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-    c.map(|x| {
-        let x = x / len;
-        if x == 0.0 {
+    // Range checked by the caller; -0 (also one rounded from a tiny negative)
+    // is written as 0 so equal geometry gives equal bytes.
+    p.map(|c| {
+        let c = c as f32;
+        if c == 0.0 {
             0.0
         } else {
-            x
+            c
         }
     })
+}
+
+/// `f32` copy of a unit vector, rounded once from `f64`: a normal read
+/// from a file (kept bit for bit when unit, `geom::normals::unit_as_read`)
+/// comes back as the same `f32`s, so a conversion is a fixed point.
+/// Renormalising in `f32` would not be: it moves the last bit each round.
+/// The rounded vector is unit to within 2⁻²³, well inside the validator's
+/// tolerance.
+pub(super) fn unit_f32(v: DVec3) -> [f32; 3] {
+    to_f32(v.to_array())
 }
 
 /// A primitive before it is laid out: its mode, material, vertices (one
@@ -359,8 +363,11 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                     } else {
                         unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z))
                     };
-                    local.clear();
-                    for (j, &v) in poly.iter().enumerate() {
+                    // Vertices are numbered in the order the triangles first
+                    // use them, not in corner order: the triangles read back
+                    // from this file then number them the same way, and
+                    // converting it again changes no byte.
+                    let vertex_of = |draw: &mut Draw, sharing: &mut Sharing, j: usize| {
                         let c = first + j;
                         let normal = match mesh.corner_normals.get(c) {
                             Some(&n) => unit_f32(DVec3::from_array(n)),
@@ -378,13 +385,23 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                                 .get(c)
                                 .map_or([0.0; 3], |c| c.map(|x| x as f32)),
                         };
-                        local.push(sharing.surface(&mut draw, mesh, v, &shading));
-                    }
+                        sharing.surface(draw, mesh, poly[j], &shading)
+                    };
                     if triangle {
-                        draw.indices.extend_from_slice(&local);
+                        for j in 0..3 {
+                            let index = vertex_of(&mut draw, &mut sharing, j);
+                            draw.indices.push(index);
+                        }
                     } else {
-                        draw.indices
-                            .extend(tri.triangles.iter().flatten().map(|&i| local[i as usize]));
+                        local.clear();
+                        local.resize(poly.len(), u32::MAX);
+                        for &j in tri.triangles.iter().flatten() {
+                            let j = j as usize;
+                            if local[j] == u32::MAX {
+                                local[j] = vertex_of(&mut draw, &mut sharing, j);
+                            }
+                            draw.indices.push(local[j]);
+                        }
                     }
                 }
             }
@@ -599,11 +616,15 @@ impl<'m> Document<'m> {
             offset: 0,
             custom: Vec::new(),
         };
-        // Every material is written, in index order, used or not.
+        // Every material is written, in index order, used or not; one the
+        // source left undecided (OBJ has no such field) is decided from the
+        // mesh, as `run` decides it.
+        let double_sided = mesh.double_sided_decided();
         let material_indices: Vec<Index<json::Material>> = mesh
             .materials
             .iter()
-            .map(|m| b.root.push(material_json(m)))
+            .zip(double_sided)
+            .map(|(m, double)| b.root.push(material_json(m, double)))
             .collect();
         let mut draws = Vec::new();
         let mut scene_nodes = Vec::new();
@@ -728,7 +749,7 @@ impl Bounds {
 }
 
 /// The glTF form of a material (PBR metallic-roughness, §3.9.2).
-fn material_json(m: &Material) -> json::Material {
+fn material_json(m: &Material, double_sided: bool) -> json::Material {
     use json::material::{
         AlphaCutoff, AlphaMode as Mode, EmissiveFactor, PbrBaseColorFactor, StrengthFactor,
     };
@@ -740,7 +761,7 @@ fn material_json(m: &Material) -> json::Material {
     json::Material {
         alpha_cutoff,
         alpha_mode: Checked::Valid(alpha_mode),
-        double_sided: m.double_sided.unwrap_or(true),
+        double_sided,
         name: Some(m.name.clone()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
             base_color_factor: PbrBaseColorFactor(m.base_color.map(|c| c as f32)),

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# graftal reads what common glTF tools write (issue 39): every listed
+# example is written as GLB by graftal, rewritten by gltfpack (its default
+# KHR_mesh_quantization; -c and -cc, EXT_meshopt_compression) and by
+# gltf-pipeline -d (KHR_draco_mesh_compression), and read back by
+# `graftal convert`; compare.py checks the result against the original to
+# the quantisation step (`make test-compressed-gltf`; CI runs it after
+# `make test`). Installs gltfpack and gltf-pipeline from npm under the
+# target folder the first time (~20 s). Work files go to a temporary
+# folder, removed afterwards unless KEEP_STATE=1. Exits 1 on a mismatch.
+#
+#   GRAFTAL=target/release/graftal tests/compressed/run.sh
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(dirname "$(dirname "$here")")
+GRAFTAL=$(realpath "${GRAFTAL:?set GRAFTAL to the graftal binary}")
+tools=${COMPRESSED_TOOLS_DIR:-${CARGO_TARGET_DIR:-$root/target}/compressed-tools}
+work=$(mktemp -d "${TMPDIR:-/tmp}/graftal-compressed.XXXXXX")
+[ "${KEEP_STATE:-0}" = 1 ] || trap 'rm -rf "$work"' EXIT
+
+if [ ! -x "$tools/node_modules/.bin/gltfpack" ] || [ ! -x "$tools/node_modules/.bin/gltf-pipeline" ]; then
+    echo "== installing gltfpack and gltf-pipeline under $tools (npm)"
+    npm install --silent --no-audit --no-fund --prefix "$tools" gltfpack@1.3.0 gltf-pipeline@4.3.1
+fi
+python3 "$here/compare.py" "$GRAFTAL" "$tools/node_modules/.bin" "$root/rules" "$work"
