@@ -138,7 +138,41 @@ def main():
             looks[tag] = sorted(l for l in text if l.startswith(("vn ", "vt ")))
         if looks["c"] != looks["q"]:
             sys.exit(f"{name} c: normals or UVs differ from the quantised-only file")
-    print(f"ok: {checked} compressed files from {len(EXAMPLES)} examples read within their quantisation step")
+    checked += blender_files(graftal, work)
+    print(f"ok: {checked} files from {len(EXAMPLES)} examples read within their quantisation step")
+
+
+def blender_files(graftal, work):
+    """Blender's exporter (when `blender` is installed: CI installs it for
+    `make test-blender` first): its GLB of each example holds the same
+    triangles at the same f32 positions; with Draco (only where Blender was
+    built with its Draco library) within Draco's default 14-bit step."""
+    import shutil
+
+    blender = shutil.which("blender")
+    if blender is None:
+        print("blender: not installed, its exporter not checked")
+        return 0
+    here = Path(__file__).parent
+    r = run(blender, "-b", "--factory-startup", "--python", here / "blender_export.py", "--", work)
+    draco = "DRACO yes" in r.stdout
+    print(f"blender: exporter's Draco library {'found' if draco else 'missing (Debian builds Blender without it)'}")
+    checked = 0
+    for name in EXAMPLES:
+        d = work / name
+        reference, triangles = read_ply(d / "orig.ply")
+        extent = max(max(v[k] for v in reference) - min(v[k] for v in reference) for k in range(3))
+        for tag, bound in [("blender", 1e-6)] + ([("blender-draco", math.sqrt(3) / 2 * extent / (2**14 - 1) * 1.001)] if draco else []):
+            run(graftal, "convert", d / f"{tag}.glb", d / f"{tag}.ply", "--ascii")
+            vertices, count = read_ply(d / f"{tag}.ply")
+            if count != triangles:
+                sys.exit(f"{name} {tag}: {count} triangles, the original has {triangles}")
+            distance = max(farthest(vertices, reference, bound), farthest(reference, vertices, bound))
+            if distance > bound:
+                sys.exit(f"{name} {tag}: a vertex moved {distance:.3e}, more than {bound:.3e}")
+            print(f"{name:12} {tag}: {count} triangles, {len(vertices)} vertices, farthest {distance:.2e} <= {bound:.2e}")
+            checked += 1
+    return checked
 
 
 main()
