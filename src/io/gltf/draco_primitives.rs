@@ -80,6 +80,8 @@ pub(super) fn decode_accessors(
     buffers: &[Cow<'_, [u8]>],
 ) -> Result<Vec<Option<Vec<u8>>>, String> {
     let mut decoded: Vec<Option<Vec<u8>>> = vec![None; root.accessors.len()];
+    // One budget for the whole file: each stream may use what is left.
+    let mut budget = MAX_DECODED_BYTES;
     for draco in primitives {
         let context = format!("mesh {} primitive {}: {NAME}", draco.mesh, draco.primitive);
         let err = |message: String| format!("{context}: {message}");
@@ -105,13 +107,21 @@ pub(super) fn decode_accessors(
         };
         // Draco's own ceilings on what one stream may claim, checked as it
         // decodes (before it allocates what a header asks for).
-        let mut input = DecoderBuffer::new(stream).with_limits(DecodeLimits::default());
+        let limits = DecodeLimits::default()
+            .with_max_decoded_bytes(budget)
+            .with_max_faces(budget / 12);
+        let mut input = DecoderBuffer::new(stream).with_limits(limits);
         let mut mesh = DracoMesh::new();
         MeshDecoder::new()
             .decode(&mut input, &mut mesh)
             .map_err(|e| err(format!("the Draco stream does not decode ({e})")))?;
         let points = mesh.num_points();
         let mut put = |accessor: usize, bytes: Vec<u8>| -> Result<(), String> {
+            budget = budget.checked_sub(bytes.len() as u64).ok_or_else(|| {
+                err(format!(
+                    "the streams decode to more than the {MAX_DECODED_BYTES} bytes one file may"
+                ))
+            })?;
             let slot = decoded
                 .get_mut(accessor)
                 .ok_or_else(|| err(format!("accessor {accessor} does not exist")))?;

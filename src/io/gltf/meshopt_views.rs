@@ -129,6 +129,16 @@ pub(super) fn decode_views(
     views: &[Option<CompressedView>],
     buffers: &[Cow<'_, [u8]>],
 ) -> Result<Vec<Option<Vec<u8>>>, String> {
+    let total = views
+        .iter()
+        .flatten()
+        .map(|v| (v.byte_stride as u64).saturating_mul(v.count as u64))
+        .fold(0u64, u64::saturating_add);
+    if total > MAX_DECODED_BYTES {
+        return Err(format!(
+            "{NAME}: the compressed views decode to {total} bytes, more than the {MAX_DECODED_BYTES} one file may"
+        ));
+    }
     views
         .iter()
         .enumerate()
@@ -161,7 +171,9 @@ fn decode_view(view: &CompressedView, buffers: &[Cow<'_, [u8]>]) -> Result<Vec<u
     };
     let stride = view.byte_stride;
     let decoded = (stride as u64).checked_mul(view.count as u64);
-    let limit = MAX_EXPANSION * view.byte_length + EXPANSION_SLACK;
+    let limit = MAX_EXPANSION
+        .saturating_mul(view.byte_length)
+        .saturating_add(EXPANSION_SLACK);
     match decoded {
         Some(n) if n <= limit => {}
         _ => {

@@ -67,6 +67,12 @@ mod tests;
 mod writer;
 
 use base64::{base64_decode, base64_encode};
+
+/// What one file's compressed views and primitives may decode to in all:
+/// as much as the largest mesh file graftal reads (`cli::files`), so a
+/// small file that claims gigabytes of constant data is refused before
+/// anything is allocated for it.
+const MAX_DECODED_BYTES: u64 = 4 << 30;
 #[cfg(test)]
 use reader::*;
 pub use reader::{decode, decode_with};
