@@ -6,7 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_located_error, graftal_in, read_mesh, stderr};
+use common::{assert_located_error, glb_json, graftal_in, read_mesh, stderr};
 use serde_json::Value;
 
 /// A cube body with a roof grown from its top, each its own part.
@@ -41,15 +41,6 @@ name = "chimney"
 select = "normal.z > 0.5"
 inset_faces = { thickness = 0.3 }
 "##;
-
-/// The JSON chunk of a GLB.
-fn glb_json(path: &Path) -> Value {
-    let bytes = std::fs::read(path).unwrap();
-    assert_eq!(&bytes[..4], b"glTF");
-    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    assert_eq!(&bytes[16..20], b"JSON");
-    serde_json::from_slice(&bytes[20..20 + len]).unwrap()
-}
 
 fn run_in(dir: &Path, rules: &str, out: &str) {
     std::fs::write(dir.join("house.toml"), rules).unwrap();

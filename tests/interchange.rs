@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-use common::{examples, graftal_in, read_mesh, stderr};
+use common::{examples, glb_json, graftal_in, read_mesh, stderr};
 
 const FORMATS: [&str; 5] = ["glb", "gltf", "obj", "ply", "stl"];
 
@@ -145,10 +145,7 @@ fn converting_between_glb_and_gltf_gives_runs_own_bytes() {
 
 /// Each material's `doubleSided` in a GLB, by name.
 fn double_sided_by_name(glb: &Path) -> BTreeMap<String, bool> {
-    let bytes = std::fs::read(glb).unwrap();
-    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let json: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
-    json["materials"]
+    glb_json(glb)["materials"]
         .as_array()
         .into_iter()
         .flatten()

@@ -40,6 +40,15 @@ pub fn toml(text: &str) -> Program {
     program(text).unwrap_or_else(|e| panic!("{}", e.headline()))
 }
 
+/// The JSON chunk of a GLB.
+pub fn glb_json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    assert_eq!(&bytes[16..20], b"JSON");
+    serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+}
+
 /// Reads and decodes a mesh file (format by extension).
 pub fn read_mesh(path: &Path) -> graftal::io::IndexedMesh {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

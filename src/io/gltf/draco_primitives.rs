@@ -5,6 +5,7 @@
 //! the primitive's accessors would hold uncompressed. The accessors then
 //! read as any others; they have no bufferView of their own.
 
+use super::reader::components;
 use super::*;
 use draco_core::decode_limits::DecodeLimits;
 use draco_core::decoder_buffer::DecoderBuffer;
@@ -147,7 +148,7 @@ pub(super) fn decode_accessors(
             if values.iter().any(|&i| i >= points as f64) {
                 return Err(err("a face names a point the stream does not have".into()));
             }
-            put(indices.value(), packed(accessor, &values, 1)?)?;
+            put(indices.value(), packed(accessor, &values)?)?;
         }
         for (semantic, id) in &draco.attributes {
             let Some(attribute) = mesh.attribute_by_unique_id(*id) else {
@@ -184,8 +185,8 @@ pub(super) fn decode_accessors(
                 .accessors
                 .get(index)
                 .ok_or_else(|| err(format!("{semantic}: accessor {index} does not exist")))?;
-            let dims =
-                dimensions(accessor).ok_or_else(|| err(format!("{semantic}: unsupported type")))?;
+            let dims = components(&accessor.type_)
+                .ok_or_else(|| err(format!("{semantic}: unsupported type")))?;
             if accessor.count.0 != points as u64 {
                 return Err(err(format!(
                     "{semantic}: the accessor counts {} vertices, the stream decodes {points}",
@@ -197,34 +198,21 @@ pub(super) fn decode_accessors(
                 .into_iter()
                 .map(f64::from)
                 .collect();
-            put(index, packed(accessor, &values, dims)?)?;
+            put(index, packed(accessor, &values)?)?;
         }
     }
     Ok(decoded)
 }
 
-fn dimensions(accessor: &json::Accessor) -> Option<usize> {
-    use json::accessor::Type;
-    match accessor.type_ {
-        Checked::Valid(Type::Scalar) => Some(1),
-        Checked::Valid(Type::Vec2) => Some(2),
-        Checked::Valid(Type::Vec3) => Some(3),
-        Checked::Valid(Type::Vec4) => Some(4),
-        _ => None,
-    }
-}
-
 /// `values` as the accessor's component type would store them (Draco
-/// decodes integer attributes to their integers, floats to floats).
-fn packed(accessor: &json::Accessor, values: &[f64], dims: usize) -> Result<Vec<u8>, String> {
+/// decodes integer attributes to their integers, floats to floats). The
+/// reader checks the length against the accessor's count and type.
+fn packed(accessor: &json::Accessor, values: &[f64]) -> Result<Vec<u8>, String> {
     use json::accessor::ComponentType as C;
     let Checked::Valid(json::accessor::GenericComponentType(component)) = accessor.component_type
     else {
         return Err("invalid componentType".into());
     };
-    if dimensions(accessor) != Some(dims) && dims != 1 {
-        return Err("unsupported accessor type".into());
-    }
     let (low, high) = match component {
         C::F32 => (f64::NEG_INFINITY, f64::INFINITY),
         C::U32 => (0.0, f64::from(u32::MAX)),

@@ -193,7 +193,7 @@ fn decode_view(view: &CompressedView, buffers: &[Cow<'_, [u8]>]) -> Result<Vec<u
             }
             let mut words = decode_vertices(bytes, view.count, stride / 4).map_err(invalid)?;
             apply_filter(view.filter, stride, &mut words)?;
-            Ok(words.iter().flat_map(|w| w.to_ne_bytes()).collect())
+            Ok(bytemuck::cast_slice(&words).to_vec())
         }
         Mode::Triangles | Mode::Indices => {
             if view.filter != Filter::None {
@@ -267,73 +267,25 @@ fn decode_vertices(bytes: &[u8], count: usize, words: usize) -> ::meshopt::Resul
 }
 
 /// Undoes the encoder's filter in place (the extension's §Filters; the
-/// crate's reference implementations). `words` are little-endian words as
-/// decoded, `stride` bytes per element.
+/// crate's reference implementations), on the decoded words viewed as the
+/// filter's elements (`stride` bytes each; the codec and the filters both
+/// work on the bytes as the file holds them).
 fn apply_filter(filter: Filter, stride: usize, words: &mut [u32]) -> Result<(), String> {
-    match filter {
-        Filter::None => Ok(()),
-        Filter::Octahedral => {
-            // Four 8-bit or four 16-bit components per element.
-            let mut bytes: Vec<u8> = words.iter().flat_map(|w| w.to_ne_bytes()).collect();
-            match stride {
-                4 => {
-                    let mut elements: Vec<[i8; 4]> = bytes
-                        .chunks_exact(4)
-                        .map(|c| [c[0], c[1], c[2], c[3]].map(|b| b as i8))
-                        .collect();
-                    ::meshopt::decode_filter_oct(&mut elements);
-                    bytes = elements.iter().flatten().map(|&b| b as u8).collect();
-                }
-                8 => {
-                    let mut elements = shorts(&bytes);
-                    ::meshopt::decode_filter_oct(&mut elements);
-                    bytes = elements
-                        .iter()
-                        .flatten()
-                        .flat_map(|s| s.to_le_bytes())
-                        .collect();
-                }
-                _ => return Err(format!("OCTAHEDRAL needs byteStride 4 or 8, not {stride}")),
-            }
-            put_words(words, &bytes);
-            Ok(())
+    use bytemuck::cast_slice_mut as view;
+    match (filter, stride) {
+        (Filter::None, _) => {}
+        // Four 8-bit or four 16-bit components per element.
+        (Filter::Octahedral, 4) => ::meshopt::decode_filter_oct(view::<u32, [i8; 4]>(words)),
+        (Filter::Octahedral, 8) => ::meshopt::decode_filter_oct(view::<u32, [i16; 4]>(words)),
+        (Filter::Octahedral, _) => {
+            return Err(format!("OCTAHEDRAL needs byteStride 4 or 8, not {stride}"))
         }
-        Filter::Quaternion => {
-            if stride != 8 {
-                return Err(format!("QUATERNION needs byteStride 8, not {stride}"));
-            }
-            let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_ne_bytes()).collect();
-            let mut elements = shorts(&bytes);
-            ::meshopt::decode_filter_quat(&mut elements);
-            let bytes: Vec<u8> = elements
-                .iter()
-                .flatten()
-                .flat_map(|s| s.to_le_bytes())
-                .collect();
-            put_words(words, &bytes);
-            Ok(())
+        (Filter::Quaternion, 8) => ::meshopt::decode_filter_quat(view::<u32, [i16; 4]>(words)),
+        (Filter::Quaternion, _) => {
+            return Err(format!("QUATERNION needs byteStride 8, not {stride}"))
         }
-        Filter::Exponential => {
-            // Each word decodes on its own: one element of one word each.
-            let mut elements: Vec<[u32; 1]> = words.iter().map(|&w| [w]).collect();
-            ::meshopt::decode_filter_exp(&mut elements);
-            for (w, e) in words.iter_mut().zip(elements) {
-                *w = e[0];
-            }
-            Ok(())
-        }
+        // Each word decodes on its own: one element of one word each.
+        (Filter::Exponential, _) => ::meshopt::decode_filter_exp(view::<u32, [u32; 1]>(words)),
     }
-}
-
-fn shorts(bytes: &[u8]) -> Vec<[i16; 4]> {
-    bytes
-        .chunks_exact(8)
-        .map(|c| [0, 2, 4, 6].map(|k| i16::from_le_bytes([c[k], c[k + 1]])))
-        .collect()
-}
-
-fn put_words(words: &mut [u32], bytes: &[u8]) {
-    for (w, c) in words.iter_mut().zip(bytes.chunks_exact(4)) {
-        *w = u32::from_ne_bytes([c[0], c[1], c[2], c[3]]);
-    }
+    Ok(())
 }

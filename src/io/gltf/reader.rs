@@ -857,7 +857,7 @@ impl Reader<'_> {
         context: &str,
         what: &str,
     ) -> Result<(&[u8], usize, usize, json::accessor::ComponentType, usize), IoError> {
-        use json::accessor::{ComponentType, Type};
+        use json::accessor::ComponentType;
         let err = |message: String| {
             self.malformed(format!("{context}: {what} accessor {index}: {message}"))
         };
@@ -873,13 +873,7 @@ impl Reader<'_> {
         else {
             return Err(err("invalid componentType".into()));
         };
-        let dims = match acc.type_ {
-            Checked::Valid(Type::Scalar) => 1,
-            Checked::Valid(Type::Vec2) => 2,
-            Checked::Valid(Type::Vec3) => 3,
-            Checked::Valid(Type::Vec4) => 4,
-            _ => return Err(err("unsupported type".into())),
-        };
+        let dims = components(&acc.type_).ok_or_else(|| err("unsupported type".into()))?;
         let size = match component {
             ComponentType::I8 | ComponentType::U8 => 1,
             ComponentType::I16 | ComponentType::U16 => 2,
@@ -1047,5 +1041,17 @@ impl Reader<'_> {
             }
         };
         Ok((0..count).map(|e| read(&bytes[e * stride..])).collect())
+    }
+}
+
+/// Components per element of an accessor type this reader takes.
+pub(super) fn components(type_: &Checked<json::accessor::Type>) -> Option<usize> {
+    use json::accessor::Type;
+    match type_ {
+        Checked::Valid(Type::Scalar) => Some(1),
+        Checked::Valid(Type::Vec2) => Some(2),
+        Checked::Valid(Type::Vec3) => Some(3),
+        Checked::Valid(Type::Vec4) => Some(4),
+        _ => None,
     }
 }
