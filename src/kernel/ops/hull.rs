@@ -40,11 +40,11 @@ pub fn convex_hull(
         copy[i] = Some(c);
         made.verts.push(c);
     }
-    for face in &hull.faces {
-        let ring: Vec<VertId> = face
-            .iter()
-            .map(|&i| copy[i].expect("a hull vertex"))
-            .collect();
+    let mut ring: Vec<VertId> = Vec::new();
+    made.faces.reserve(hull.face_count());
+    for face in hull.faces() {
+        ring.clear();
+        ring.extend(face.iter().map(|&i| copy[i].expect("a hull vertex")));
         let f = mesh.make_face(&ring)?;
         made.faces.push(f);
         made.edges.extend(mesh.face_edges(f));
