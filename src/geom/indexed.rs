@@ -651,6 +651,9 @@ impl IndexedMesh {
             let cells = Cells::for_distance(distance);
             let mut lists = CellLists::with_capacity(n, 0);
             kept.reserve(n);
+            // The kept positions in kept order, so a candidate costs one
+            // load, not two dependent ones.
+            let mut kept_at: Vec<DVec3> = Vec::new();
             let d2 = distance * distance;
             for (i, p) in self.positions.iter().enumerate() {
                 let point = DVec3::from_array(*p);
@@ -662,13 +665,8 @@ impl IndexedMesh {
                             let mut j = lists.head([cx, cy, cz]);
                             while j != NONE {
                                 // Lists run newest first: every later entry is lower.
-                                if j < found {
-                                    let q = DVec3::from_array(
-                                        self.positions[kept[j as usize] as usize],
-                                    );
-                                    if q.distance_squared(point) <= d2 {
-                                        found = j;
-                                    }
+                                if j < found && kept_at[j as usize].distance_squared(point) <= d2 {
+                                    found = j;
                                 }
                                 j = lists.next(j);
                             }
@@ -679,6 +677,7 @@ impl IndexedMesh {
                     found
                 } else {
                     kept.push(i as u32);
+                    kept_at.push(point);
                     lists.push(cells.of(*p))
                 };
                 map.push(index);
