@@ -180,25 +180,23 @@ fn outside_inner_ball(points: &[DVec3]) -> Option<Vec<u32>> {
     let hull = hull_of(&sample, true).ok()?;
     let corners: Vec<DVec3> = hull.vertices.iter().map(|&i| sample[i]).collect();
     let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
-    let extent = corners
-        .iter()
-        .map(|&c| (c - centre).abs().max_element())
-        .fold(0.0, f64::max);
-    // The centre's distance to the nearest face plane (faces wind counter-
-    // clockwise from outside, and no three consecutive corners of a hull
-    // polygon are collinear).
-    let nearest = hull
-        .faces()
-        .map(|f| {
-            let [a, b, c] = [f[0], f[1], f[2]].map(|i| sample[i]);
-            let n = (b - a).cross(c - a);
-            n.dot(a - centre) / n.length()
-        })
-        .fold(f64::INFINITY, f64::min);
-    // Rounding in those distances is near 1e-15 of the extent; the margin
-    // is a million times that, and the squared distance below is as close.
-    let radius = nearest - 1.0e-9 * extent;
-    if radius.is_nan() || radius <= 1.0e-6 * extent {
+    // The largest radius whose ball around the centre lies strictly inside
+    // every face's plane, bounded from below with the predicates' own
+    // float filter, so it holds for slivers too: n·(a − centre) is at
+    // least the float value less its error bound (as in `Plane::sees`),
+    // and |n| at most the float length plus the cross product's rounding.
+    let mut radius = f64::INFINITY;
+    for face in hull.faces() {
+        let plane = Plane::new(&sample, [face[0], face[1], face[2]].map(|i| i as u32));
+        let d = centre - plane.origin;
+        let depth = -plane.normal.dot(d) - 1.0e-15 * plane.permanent.dot(d.abs());
+        let length = plane.normal.length() + 1.0e-15 * plane.permanent.length();
+        radius = radius.min(depth / (length * (1.0 + 1.0e-15)));
+    }
+    // The last roundings (this quotient, the squared distances below) are
+    // a few units in the last place: a relative margin of 1e-12 covers them.
+    let radius = radius * (1.0 - 1.0e-12);
+    if radius.is_nan() || radius <= 0.0 {
         return None;
     }
     let within = radius * radius;
