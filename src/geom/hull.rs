@@ -803,6 +803,20 @@ mod tests {
         out
     }
 
+    /// `faces` (renumbered from another hull) put in canonical order, each
+    /// from its lowest index and sorted, equal `hull`'s faces.
+    fn assert_same_faces(mut faces: Vec<Vec<usize>>, hull: &Hull) {
+        for face in &mut faces {
+            let lowest = (0..face.len()).min_by_key(|&k| face[k]).unwrap();
+            face.rotate_left(lowest);
+        }
+        faces.sort();
+        assert_eq!(
+            faces,
+            hull.faces().map(<[usize]>::to_vec).collect::<Vec<_>>()
+        );
+    }
+
     #[test]
     fn the_throw_away_step_drops_most_of_a_ball_and_no_hull_vertex() {
         let points = ball(100_000, 7);
@@ -825,16 +839,7 @@ mod tests {
         let extreme: Vec<DVec3> = hull.vertices.iter().map(|&v| points[v]).collect();
         let alone = convex_hull(&extreme, true).unwrap();
         let back = |f: &[usize]| f.iter().map(|&k| hull.vertices[k]).collect::<Vec<_>>();
-        let mut faces: Vec<Vec<usize>> = alone.faces().map(back).collect();
-        for face in &mut faces {
-            let lowest = (0..face.len()).min_by_key(|&k| face[k]).unwrap();
-            face.rotate_left(lowest);
-        }
-        faces.sort();
-        assert_eq!(
-            faces,
-            hull.faces().map(<[usize]>::to_vec).collect::<Vec<_>>()
-        );
+        assert_same_faces(alone.faces().map(back).collect(), &hull);
     }
 
     #[test]
@@ -845,19 +850,11 @@ mod tests {
         let n = points.len();
         let reversed: Vec<DVec3> = points.iter().rev().copied().collect();
         let other = convex_hull(&reversed, false).unwrap();
-        let mut faces: Vec<Vec<usize>> = other
+        let faces = other
             .faces()
             .map(|f| f.iter().map(|&i| n - 1 - i).collect())
             .collect();
-        for face in &mut faces {
-            let lowest = (0..face.len()).min_by_key(|&k| face[k]).unwrap();
-            face.rotate_left(lowest);
-        }
-        faces.sort();
-        assert_eq!(
-            faces,
-            hull.faces().map(<[usize]>::to_vec).collect::<Vec<_>>()
-        );
+        assert_same_faces(faces, &hull);
     }
 
     #[test]
