@@ -643,54 +643,16 @@ impl IndexedMesh {
     pub fn welded(&self, distance: f64) -> IndexedMesh {
         let n = self.positions.len();
         let mut map: Vec<u32> = Vec::with_capacity(n);
+        self.weld_map(distance, 1 << 16, |chunk| {
+            map.extend_from_slice(chunk);
+            true
+        });
+        // A vertex keeps its own place exactly when it is mapped to the
+        // number of vertices kept before it.
         let mut kept: Vec<u32> = Vec::new();
-        if distance > 0.0 && distance.is_finite() {
-            // Each cell (geom::cells: 8 searched per point) lists the kept
-            // vertices in it, newest first. How many cells the kept
-            // vertices fill is unknown, so the table grows.
-            let cells = Cells::for_distance(distance);
-            let mut lists = CellLists::with_capacity(n, 0);
-            kept.reserve(n);
-            // The kept positions in kept order, so a candidate costs one
-            // load, not two dependent ones.
-            let mut kept_at: Vec<DVec3> = Vec::new();
-            let d2 = distance * distance;
-            for (i, p) in self.positions.iter().enumerate() {
-                let point = DVec3::from_array(*p);
-                let (lo, hi) = cells.around(*p);
-                let mut found = NONE;
-                for cx in lo[0]..=hi[0] {
-                    for cy in lo[1]..=hi[1] {
-                        for cz in lo[2]..=hi[2] {
-                            let mut j = lists.head([cx, cy, cz]);
-                            while j != NONE {
-                                // Lists run newest first: every later entry is lower.
-                                if j < found && kept_at[j as usize].distance_squared(point) <= d2 {
-                                    found = j;
-                                }
-                                j = lists.next(j);
-                            }
-                        }
-                    }
-                }
-                let index = if found != NONE {
-                    found
-                } else {
-                    kept.push(i as u32);
-                    kept_at.push(point);
-                    lists.push(cells.of(*p))
-                };
-                map.push(index);
-            }
-        } else {
-            let mut exact: HashMap<[u64; 3], u32> = HashMap::new();
-            for (i, p) in self.positions.iter().enumerate() {
-                let bits = p.map(|c| (c + 0.0).to_bits());
-                let index = *exact.entry(bits).or_insert_with(|| {
-                    kept.push(i as u32);
-                    kept.len() as u32 - 1
-                });
-                map.push(index);
+        for (i, &m) in map.iter().enumerate() {
+            if m as usize == kept.len() {
+                kept.push(i as u32);
             }
         }
         let mut out = IndexedMesh::new();
@@ -711,18 +673,8 @@ impl IndexedMesh {
         // values follow their corner.
         let mut corners: Vec<(u32, usize)> = Vec::new();
         for (k, poly) in self.polygons().enumerate() {
-            corners.clear();
             let first = self.face_starts[k] as usize;
-            for (i, &v) in poly.iter().enumerate() {
-                let w = map[v as usize];
-                if corners.last().map(|c| c.0) != Some(w) {
-                    corners.push((w, first + i));
-                }
-            }
-            while corners.len() > 1 && corners.first().map(|c| c.0) == corners.last().map(|c| c.0) {
-                corners.pop();
-            }
-            if corners.len() < 3 {
+            if !welded_ring(poly, first, &map, &mut corners) {
                 continue;
             }
             out.face_indices.extend(corners.iter().map(|c| c.0));
@@ -756,6 +708,101 @@ impl IndexedMesh {
         }
         out
     }
+
+    /// The weld of [`Self::welded`] as a map, streamed: `on_chunk` gets
+    /// every vertex's index among the kept vertices, in vertex order, in
+    /// chunks of `chunk` (the last one shorter), and stops the weld by
+    /// returning `false`. A vertex keeps its own place exactly when it is
+    /// mapped to the number of vertices kept before it.
+    pub fn weld_map(&self, distance: f64, chunk: usize, mut on_chunk: impl FnMut(&[u32]) -> bool) {
+        let n = self.positions.len();
+        let chunk = chunk.clamp(1, n.max(1));
+        let mut map: Vec<u32> = Vec::with_capacity(chunk);
+        let mut flush = |map: &mut Vec<u32>, last: bool| {
+            if map.len() == chunk || (last && !map.is_empty()) {
+                let go_on = on_chunk(map);
+                map.clear();
+                go_on
+            } else {
+                true
+            }
+        };
+        if distance > 0.0 && distance.is_finite() {
+            // Each cell (geom::cells: 8 searched per point) lists the kept
+            // vertices in it, newest first. How many cells the kept
+            // vertices fill is unknown, so the table grows.
+            let cells = Cells::for_distance(distance);
+            let mut lists = CellLists::with_capacity(n, 0);
+            // The kept positions in kept order, so a candidate costs one
+            // load, not two dependent ones.
+            let mut kept_at: Vec<DVec3> = Vec::new();
+            let d2 = distance * distance;
+            for p in &self.positions {
+                let point = DVec3::from_array(*p);
+                let (lo, hi) = cells.around(*p);
+                let mut found = NONE;
+                for cx in lo[0]..=hi[0] {
+                    for cy in lo[1]..=hi[1] {
+                        for cz in lo[2]..=hi[2] {
+                            let mut j = lists.head([cx, cy, cz]);
+                            while j != NONE {
+                                // Lists run newest first: every later entry is lower.
+                                if j < found && kept_at[j as usize].distance_squared(point) <= d2 {
+                                    found = j;
+                                }
+                                j = lists.next(j);
+                            }
+                        }
+                    }
+                }
+                let index = if found != NONE {
+                    found
+                } else {
+                    kept_at.push(point);
+                    lists.push(cells.of(*p))
+                };
+                map.push(index);
+                if !flush(&mut map, false) {
+                    return;
+                }
+            }
+        } else {
+            let mut exact: HashMap<[u64; 3], u32> = HashMap::new();
+            for p in &self.positions {
+                let bits = p.map(|c| (c + 0.0).to_bits());
+                let next = exact.len() as u32;
+                let index = *exact.entry(bits).or_insert(next);
+                map.push(index);
+                if !flush(&mut map, false) {
+                    return;
+                }
+            }
+        }
+        flush(&mut map, true);
+    }
+}
+
+/// Polygon `poly` (its first corner at `first` in `face_indices`) after
+/// [`IndexedMesh::welded`]'s `map`: its corners as (kept vertex, corner
+/// index), repeated neighbours (the closing pair too) made one. `false`
+/// when fewer than 3 are left: the weld drops the polygon.
+pub fn welded_ring(
+    poly: &[u32],
+    first: usize,
+    map: &[u32],
+    corners: &mut Vec<(u32, usize)>,
+) -> bool {
+    corners.clear();
+    for (i, &v) in poly.iter().enumerate() {
+        let w = map[v as usize];
+        if corners.last().map(|c| c.0) != Some(w) {
+            corners.push((w, first + i));
+        }
+    }
+    while corners.len() > 1 && corners.first().map(|c| c.0) == corners.last().map(|c| c.0) {
+        corners.pop();
+    }
+    corners.len() >= 3
 }
 
 /// Reusable buffers for triangulating a mesh polygon by polygon without allocating.

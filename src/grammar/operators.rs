@@ -518,19 +518,26 @@ pub(super) fn apply(
                 .get(*path)
                 .ok_or_else(|| StepError::NotLoaded(source.written.clone()))?
                 .mesh;
-            let mut indexed = match weld {
-                Some(d) => std::borrow::Cow::Owned(loaded.welded(ctx.scalar(d))),
-                None => std::borrow::Cow::Borrowed(&**loaded),
-            };
-            if *up == UpAxis::Y {
-                indexed.to_mut().y_up_to_z_up();
-            }
-            // Built straight into the working mesh: no copy.
-            crate::kernel::build::append_indexed(mesh, &indexed).map_err(|error| {
-                StepError::Import {
-                    file: source.written.clone(),
-                    error,
+            let built = match (weld, up) {
+                // Welded as it is built, on two cores: no welded copy.
+                (Some(d), UpAxis::Z) => {
+                    crate::kernel::build::append_welded(mesh, loaded, ctx.scalar(d))
                 }
+                _ => {
+                    let mut indexed = match weld {
+                        Some(d) => std::borrow::Cow::Owned(loaded.welded(ctx.scalar(d))),
+                        None => std::borrow::Cow::Borrowed(&**loaded),
+                    };
+                    if *up == UpAxis::Y {
+                        indexed.to_mut().y_up_to_z_up();
+                    }
+                    // Built straight into the working mesh: no copy.
+                    crate::kernel::build::append_indexed(mesh, &indexed)
+                }
+            };
+            built.map_err(|error| StepError::Import {
+                file: source.written.clone(),
+                error,
             })?
         }
         OpArgs::Translate { offset } => {

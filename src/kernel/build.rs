@@ -24,6 +24,7 @@ use super::attrs::{AttrValue, Layer, LayerKind};
 use super::ids::{Domain, EdgeId, FaceId, VertId};
 use super::mesh::Mesh;
 use super::ops::Selection;
+use crate::geom::indexed::welded_ring;
 use crate::geom::sink::{Begin, MeshSink, SinkError};
 use crate::geom::IndexedMesh;
 
@@ -49,6 +50,10 @@ pub struct KernelBuilder<'m> {
     polygons_seen: usize,
     report: ImportReport,
     ring: Vec<VertId>,
+    /// Every edge the faces use, in the order they were first used.
+    face_edges: Vec<EdgeId>,
+    /// `faces[..settled]` have their stored normals.
+    settled: usize,
 }
 
 impl<'m> KernelBuilder<'m> {
@@ -62,27 +67,30 @@ impl<'m> KernelBuilder<'m> {
             polygons_seen: 0,
             report: ImportReport::default(),
             ring: Vec::new(),
+            face_edges: Vec::new(),
+            settled: 0,
         }
     }
 
     /// What the emission made (ids ascending) and what it dropped.
-    pub fn finish(self) -> (Selection, ImportReport) {
-        // Every vertex is new, so every edge of a new face is too, and the loop that made it
-        // is its first: taking each edge at that loop lists it once, in the order it was made
-        // (ascending ids unless freed slots were reused), so normalizing is one linear pass.
-        let mut edges: Vec<EdgeId> =
-            Vec::with_capacity(self.faces.len() * 3 / 2 + self.lines.len());
-        for &f in &self.faces {
-            for l in self.mesh.face_loops(f) {
-                let e = self.mesh.lp(l).edge;
-                if self.mesh.edge(e).first_loop == Some(l) {
-                    edges.push(e);
-                }
-            }
-        }
+    pub fn finish(mut self) -> (Selection, ImportReport) {
+        self.settle_normals();
+        // Every vertex is new, so every edge of a new face is too; the faces listed the edges
+        // in the order they were first used, which is the order they were made (ascending ids
+        // unless freed slots were reused), so normalizing is one linear pass.
+        let mut edges = std::mem::take(&mut self.face_edges);
         edges.extend(&self.lines);
         let made = Selection::from_parts(self.verts, edges, self.faces);
         (made, self.report)
+    }
+
+    /// The stored normals of the faces made since the last call, in one
+    /// pass (faces are made with the normal left for it: see
+    /// [`Mesh::make_face_of_clean_ring`]).
+    fn settle_normals(&mut self) {
+        let fresh = &self.faces[self.settled..];
+        self.mesh.refresh_normals_of(fresh);
+        self.settled = self.faces.len();
     }
 }
 
@@ -151,18 +159,24 @@ impl MeshSink for KernelBuilder<'_> {
         while self.ring.len() > 1 && self.ring.first() == self.ring.last() {
             self.ring.pop();
         }
+        // Every corner is a live vertex of this build, so a ring of at least 3 distinct
+        // corners is one `make_face` accepts.
         if self.ring.len() >= 3 && !has_repeats(&self.ring) {
             // The common case: a simple ring, made as it is.
-            match self.mesh.make_face(&self.ring) {
-                Ok(f) => self.faces.push(f),
-                Err(_) => self.report.degenerate_faces += 1,
-            }
+            let f = self
+                .mesh
+                .make_face_of_clean_ring(&self.ring, &mut self.face_edges);
+            self.faces.push(f);
             return Ok(());
         }
         for piece in simple_loops(&self.ring) {
-            match (piece.len() >= 3).then(|| self.mesh.make_face(&piece)) {
-                Some(Ok(f)) => self.faces.push(f),
-                _ => self.report.degenerate_faces += 1,
+            if piece.len() >= 3 {
+                let f = self
+                    .mesh
+                    .make_face_of_clean_ring(&piece, &mut self.face_edges);
+                self.faces.push(f);
+            } else {
+                self.report.degenerate_faces += 1;
             }
         }
         Ok(())
@@ -198,7 +212,9 @@ impl MeshSink for KernelBuilder<'_> {
 
     /// Leaves what was built: a caller that gives up drops the mesh (a
     /// fresh one) or fails the run (the engine's working mesh).
-    fn abort(&mut self) {}
+    fn abort(&mut self) {
+        self.settle_normals();
+    }
 }
 
 /// Whether a ring visits a vertex twice.
@@ -268,6 +284,133 @@ pub fn append_indexed(mesh: &mut Mesh, indexed: &IndexedMesh) -> Result<Selectio
     let mut builder = KernelBuilder::new(mesh);
     indexed.emit(&mut builder)?;
     Ok(builder.finish().0)
+}
+
+/// Input vertices the weld hands over at a time in [`append_welded`].
+const WELD_CHUNK: usize = 1 << 14;
+
+/// [`append_indexed`] of `indexed.welded(distance)`: the same calls into
+/// the same builder, so the same mesh, bit for bit. The weld
+/// ([`IndexedMesh::weld_map`]) runs as one task and this build as another,
+/// which takes each kept vertex and each polygon as soon as the weld has
+/// placed its corners (in a soup, right after them), so on two cores the
+/// build, a third of an import, hides behind the weld. The map reaches the
+/// build in order over a channel that never blocks the weld, so the
+/// result cannot depend on timing, and with one thread the weld simply
+/// runs first.
+pub fn append_welded(
+    mesh: &mut Mesh,
+    indexed: &IndexedMesh,
+    distance: f64,
+) -> Result<Selection, SinkError> {
+    append_welded_in_chunks(mesh, indexed, distance, WELD_CHUNK)
+}
+
+/// [`append_welded`] with the weld handing over `chunk` vertices at a time.
+fn append_welded_in_chunks(
+    mesh: &mut Mesh,
+    indexed: &IndexedMesh,
+    distance: f64,
+    chunk: usize,
+) -> Result<Selection, SinkError> {
+    let (send, receive) = std::sync::mpsc::channel::<Vec<u32>>();
+    let mut builder = KernelBuilder::new(mesh);
+    let weld = move || {
+        // A send fails only once the build has given up: stop there.
+        indexed.weld_map(distance, chunk, |map| send.send(map.to_vec()).is_ok());
+    };
+    // The weld is the task `join` starts on this thread: it never waits
+    // for the build, so one thread runs it to the end, then the build.
+    let ((), built) = rayon::join(weld, || {
+        let built = build_welded(&mut builder, indexed, receive);
+        if built.is_err() {
+            builder.abort();
+        }
+        built
+    });
+    built?;
+    Ok(builder.finish().0)
+}
+
+/// The build side of [`append_welded`]: what `indexed.welded(…).emit(…)`
+/// would hand `builder`, taken as the weld's map arrives.
+fn build_welded(
+    builder: &mut KernelBuilder,
+    indexed: &IndexedMesh,
+    map_chunks: std::sync::mpsc::Receiver<Vec<u32>>,
+) -> Result<(), SinkError> {
+    let n = indexed.positions.len();
+    let names: Vec<&str> = indexed
+        .vertex_scalars
+        .iter()
+        .map(|(name, _)| name.as_str())
+        .collect();
+    // The welded counts are not known yet; the input's bound them.
+    builder.begin(&Begin {
+        vertices: n,
+        polygons: indexed.polygon_count(),
+        corners: indexed.face_indices.len(),
+        lines: indexed.lines.len(),
+        scalars: &names,
+    })?;
+    let mut map: Vec<u32> = Vec::with_capacity(n);
+    let mut scalars = vec![0.0; names.len()];
+    let mut corners: Vec<(u32, usize)> = Vec::new();
+    let mut ring: Vec<u32> = Vec::new();
+    let polygons = indexed.polygon_count();
+    let mut next = 0;
+    // Polygons from `next` on whose corners are all mapped, in order.
+    let mut build_ready = |builder: &mut KernelBuilder, map: &[u32], next: &mut usize| {
+        while *next < polygons {
+            let k = *next;
+            let poly = indexed.polygon(k);
+            if let Some(&v) = poly.iter().find(|&&v| v as usize >= map.len()) {
+                if map.len() < n {
+                    return Ok(());
+                }
+                // Everything is mapped and this corner still is not: the
+                // input is malformed (readers validate, so only a caller's).
+                return Err(SinkError::BadIndex {
+                    face: k,
+                    vertex: v,
+                    count: n,
+                });
+            }
+            if welded_ring(poly, indexed.face_starts[k] as usize, map, &mut corners) {
+                ring.clear();
+                ring.extend(corners.iter().map(|c| c.0));
+                builder.polygon(&ring)?;
+            }
+            *next += 1;
+        }
+        Ok(())
+    };
+    for chunk in map_chunks {
+        for &m in &chunk {
+            let i = map.len();
+            if m as usize == builder.verts.len() {
+                // A vertex that keeps its own place: the next kept one.
+                for (slot, (_, values)) in scalars.iter_mut().zip(&indexed.vertex_scalars) {
+                    *slot = values.get(i).copied().ok_or(SinkError::ScalarCount {
+                        vertex: i,
+                        found: values.len(),
+                        expected: n,
+                    })?;
+                }
+                builder.vertex(DVec3::from_array(indexed.positions[i]), &scalars)?;
+            }
+            map.push(m);
+        }
+        build_ready(builder, &map, &mut next)?;
+    }
+    build_ready(builder, &map, &mut next)?;
+    for l in &indexed.lines {
+        let [a, b] = l.map(|v| map.get(v as usize).copied().unwrap_or(u32::MAX));
+        if a != b {
+            builder.line(a, b)?;
+        }
+    }
+    builder.end()
 }
 
 impl Mesh {
@@ -456,5 +599,128 @@ mod tests {
             );
         }
         assert!(first.verts.iter().all(|v| !second.verts.contains(v)));
+    }
+
+    /// A soup in the shape imports weld: a jittered grid of points, each
+    /// repeated per corner, shuffled, with collapsing triangles, quads that
+    /// reach far ahead, lines (some collapsing) and a vertex scalar.
+    fn jittered_soup(seed: u64, cells: usize, jitter: f64) -> IndexedMesh {
+        let mut state = seed;
+        let mut next = move || {
+            // splitmix64
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        };
+        let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
+        let mut m = IndexedMesh::new();
+        let corner =
+            |m: &mut IndexedMesh, i: usize, j: usize, unit: &mut dyn FnMut() -> f64| {
+                let p = [
+                    i as f64 + jitter * (unit() - 0.5),
+                    j as f64 + jitter * (unit() - 0.5),
+                    0.25 * ((i * j) % 3) as f64,
+                ];
+                m.positions.push(p);
+                (m.positions.len() - 1) as u32
+            };
+        for i in 0..cells {
+            for j in 0..cells {
+                let a = corner(&mut m, i, j, &mut unit);
+                let b = corner(&mut m, i + 1, j, &mut unit);
+                let c = corner(&mut m, i + 1, j + 1, &mut unit);
+                m.push_polygon(&[a, b, c]);
+                let d = corner(&mut m, i, j + 1, &mut unit);
+                let e = corner(&mut m, i, j, &mut unit);
+                let f = corner(&mut m, i + 1, j + 1, &mut unit);
+                m.push_polygon(&[e, f, d]);
+            }
+        }
+        let soup = m.positions.len() as u32;
+        // Collapses to a segment once welded, and a triangle closing on itself.
+        let (p, q) = (
+            corner(&mut m, 0, 0, &mut unit),
+            corner(&mut m, 0, 0, &mut unit),
+        );
+        let r = corner(&mut m, 1, 0, &mut unit);
+        m.push_polygon(&[p, q, r]);
+        // Quads over vertices from all over the file, the last ones included.
+        for k in 0..cells as u32 {
+            let at = |x: u32| (x * 7919 + k * 104_729) % soup;
+            m.push_polygon(&[at(1), at(2), soup + 2, at(3)]);
+        }
+        m.lines.push([0, 1]);
+        m.lines.push([p, q]);
+        m.lines.push([soup - 1, 2]);
+        let values = (0..m.positions.len()).map(|i| i as f64 * 0.5).collect();
+        m.vertex_scalars.push(("w".into(), values));
+        m
+    }
+
+    /// The mesh with another mesh already in it, some slots freed.
+    fn with_earlier_content() -> Mesh {
+        let mut mesh = Mesh::new();
+        let v: Vec<VertId> = (0..5)
+            .map(|i| mesh.make_vert(DVec3::new(f64::from(i), 0.5 * f64::from(i * i), 1.0)))
+            .collect();
+        let f = mesh.make_face(&[v[0], v[1], v[2]]).unwrap();
+        mesh.make_face(&[v[0], v[2], v[3], v[4]]).unwrap();
+        mesh.kill_face(f).unwrap();
+        mesh
+    }
+
+    #[test]
+    fn welding_while_building_makes_the_mesh_the_welded_copy_makes() {
+        for (seed, distance) in [(1, 0.05), (2, 0.05), (3, 0.0), (4, 0.3)] {
+            // Distance 0 welds bitwise-equal points only: no jitter there.
+            let jitter = if distance > 0.0 { 0.04 } else { 0.0 };
+            let soup = jittered_soup(seed, 9, jitter);
+            for earlier in [false, true] {
+                let fresh = || {
+                    if earlier {
+                        with_earlier_content()
+                    } else {
+                        Mesh::new()
+                    }
+                };
+                let mut expected = fresh();
+                let made = append_indexed(&mut expected, &soup.welded(distance)).unwrap();
+                expected.validate().unwrap();
+                let expected_state = format!("{expected:?}");
+                for threads in [1, 2] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    for chunk in [1, 7, 64, WELD_CHUNK] {
+                        let mut mesh = fresh();
+                        let got = pool
+                            .install(|| append_welded_in_chunks(&mut mesh, &soup, distance, chunk))
+                            .unwrap();
+                        let case = format!("seed {seed}, {threads} threads, chunk {chunk}");
+                        assert_eq!(got, made, "{case}");
+                        assert!(format!("{mesh:?}") == expected_state, "{case}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn welding_while_building_reports_a_bad_index_and_stops() {
+        let mut soup = jittered_soup(5, 4, 0.04);
+        let n = soup.positions.len() as u32;
+        soup.push_polygon(&[0, n + 3, 1]);
+        let mut mesh = Mesh::new();
+        let err = append_welded_in_chunks(&mut mesh, &soup, 0.05, 5).unwrap_err();
+        assert!(
+            matches!(err, SinkError::BadIndex { vertex, .. } if vertex == n + 3),
+            "{err}"
+        );
+        // What was built before the bad polygon stands (the caller drops it
+        // or fails the run) and is a valid mesh, normals included.
+        mesh.validate().unwrap();
     }
 }

@@ -321,6 +321,34 @@ impl Mesh {
         )
     }
 
+    /// MakeFace for a bulk builder ([`super::build::KernelBuilder`]): the
+    /// face [`Mesh::make_face`] would make, but `ring` is known to be at
+    /// least 3 distinct live vertices (the builder cleaned it), and the
+    /// stored normal is left zero for one [`Mesh::refresh_normals_of`]
+    /// pass over every face the builder made (in parallel, the same bits).
+    /// Edges this face is the first to use are pushed to `first_used`, in
+    /// ring order: over a build, every edge its faces use, in the order
+    /// they were first used.
+    pub(in crate::kernel) fn make_face_of_clean_ring(
+        &mut self,
+        ring: &[VertId],
+        first_used: &mut Vec<EdgeId>,
+    ) -> FaceId {
+        debug_assert!(self.check_face_ring(ring).is_ok());
+        self.make_face_unchecked(ring, Normals::Defer, |mesh, _, v, w| {
+            let e = match mesh.find_edge(v, w) {
+                Some(e) => e,
+                None => mesh.new_edge_unchecked(v, w),
+            };
+            // A simple ring uses an edge once, so no earlier side of this
+            // face has taken it.
+            if mesh.edge(e).first_loop.is_none() {
+                first_used.push(e);
+            }
+            e
+        })
+    }
+
     /// MakeFace on a ring of vertices whose sides already exist as the given
     /// edges (`edges[i]` joins `ring[i]` and `ring[i + 1]`, the last joins
     /// the last vertex to the first): the face [`Mesh::make_face`] would

@@ -32,6 +32,8 @@ pub(crate) struct Layout {
     /// Pole group per border [u_min, u_max, v_min, v_max] (borders sharing a corner and both
     /// collapsed are one point), or None.
     pole_group: [Option<usize>; 4],
+    /// [`Layout::is_plain`], decided once: the cells are visited per triangle.
+    plain: bool,
 }
 
 impl Layout {
@@ -67,12 +69,15 @@ impl Layout {
                 pole_group[k] = Some(find(&mut group, k));
             }
         }
-        Layout {
+        let mut layout = Layout {
             cu,
             cv,
             closed,
             pole_group,
-        }
+            plain: false,
+        };
+        layout.plain = layout.is_plain();
+        layout
     }
 
     fn key(&self, i: usize, j: usize) -> Key {
@@ -87,9 +92,18 @@ impl Layout {
         Key::Grid(i, j)
     }
 
+    /// Neither seams nor poles: every grid sample is its own vertex and no cell collapses.
+    fn is_plain(&self) -> bool {
+        !self.closed[0] && !self.closed[1] && self.pole_group.iter().all(Option::is_none)
+    }
+
     /// The two triangles of cell (i, j) as grid corners; `None` where they collapse.
     fn cell(&self, i: usize, j: usize) -> [Option<[(usize, usize); 3]>; 2] {
         let (a, b, c, d) = ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1));
+        if self.plain {
+            // Four distinct samples, four distinct keys: nothing to look up.
+            return [Some([a, b, c]), Some([a, c, d])];
+        }
         let keep = |t: [(usize, usize); 3]| {
             let k = t.map(|(x, y)| self.key(x, y));
             if k[0] == k[1] || k[1] == k[2] || k[0] == k[2] {
@@ -264,9 +278,7 @@ pub(crate) fn uniform(
     let layout = Layout::new(cu, cv, [top.closed_u, top.closed_v], top.poles);
     let grid = surface.grid(&us, &vs, true)?;
     let nv = vs.len();
-    let plain =
-        !layout.closed[0] && !layout.closed[1] && layout.pole_group.iter().all(Option::is_none);
-    let (mut mesh, ids) = if plain {
+    let (mut mesh, ids) = if layout.plain {
         // Every grid sample is its own vertex, in grid order: the samples become the mesh.
         let uvs = us
             .iter()
