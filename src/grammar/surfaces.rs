@@ -13,8 +13,9 @@ use crate::geom::sink::{Begin, MeshSink, Placed};
 use crate::geom::uv::{SURFACE_U, SURFACE_V};
 use crate::kernel::build::KernelBuilder;
 use crate::kernel::ops::Selection;
-use crate::kernel::{Domain, Mesh};
+use crate::kernel::{AttrValue, Domain, Mesh};
 use crate::nurbs::error::Dir;
+use crate::nurbs::mesh::TriMesh;
 use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
 use crate::nurbs::surface::NurbsSurface;
 use crate::nurbs::tess::{
@@ -208,14 +209,64 @@ pub(super) fn create(
     args: &TessellateArgs,
 ) -> Result<(Selection, SurfaceStats), StepError> {
     let (t, stats) = tessellate_call(ctx, args, 1)?;
-    let made = append_surface(
-        mesh,
-        &t.mesh.positions,
-        &t.mesh.uvs,
-        &t.mesh.triangles,
-        None,
-    )?;
+    let made = match append_grid(mesh, &t.mesh) {
+        Some(made) => made,
+        None => append_surface(
+            mesh,
+            &t.mesh.positions,
+            &t.mesh.uvs,
+            &t.mesh.triangles,
+            None,
+        )?,
+    };
     Ok((made, stats))
+}
+
+/// A tessellation that is a grid (uniform, without seams or poles) built
+/// in closed form, in parallel ([`Mesh::append_triangle_grid`]): the mesh
+/// [`append_surface`] would build. `None` when it is not a grid or the
+/// kernel declines; nothing is changed then.
+fn append_grid(mesh: &mut Mesh, surface: &TriMesh) -> Option<Selection> {
+    let [nu, nv] = grid_shape(surface.positions.len(), &surface.triangles)?;
+    let positions: Vec<DVec3> = surface
+        .positions
+        .iter()
+        .map(|p| DVec3::from_array(*p))
+        .collect();
+    let made = mesh.append_triangle_grid(nu, nv, &positions)?;
+    if !surface.uvs.is_empty() && surface.uvs.len() == positions.len() {
+        for name in [SURFACE_U, SURFACE_V] {
+            // A same-named layer of another kind stays; values then do not
+            // land (as in the face-by-face build).
+            let _ = mesh.add_layer(name, Domain::Vert, AttrValue::Scalar(0.0));
+        }
+        for (v, uv) in made.verts.iter().zip(&surface.uvs) {
+            let _ = mesh.set_attr(SURFACE_U, Domain::Vert, v.index(), AttrValue::Scalar(uv[0]));
+            let _ = mesh.set_attr(SURFACE_V, Domain::Vert, v.index(), AttrValue::Scalar(uv[1]));
+        }
+    }
+    Some(made)
+}
+
+/// `[nu, nv]` when `triangles` over `vertices` points are exactly the grid
+/// [`Mesh::append_triangle_grid`] makes: vertex (i, j) = i·nv + j, cells
+/// in order, each as (a, b, c), (a, c, d).
+fn grid_shape(vertices: usize, triangles: &[[u32; 3]]) -> Option<[usize; 2]> {
+    let nv = triangles.first()?[1] as usize;
+    if nv < 2 || vertices % nv != 0 {
+        return None;
+    }
+    let nu = vertices / nv;
+    if nu < 2 || triangles.len() != 2 * (nu - 1) * (nv - 1) {
+        return None;
+    }
+    let cv = nv - 1;
+    let grid = triangles.chunks_exact(2).enumerate().all(|(cell, pair)| {
+        let a = ((cell / cv) * nv + cell % cv) as u32;
+        let (b, d) = (a + nv as u32, a + 1);
+        pair[0] == [a, b, b + 1] && pair[1] == [a, b + 1, d]
+    });
+    grid.then_some([nu, nv])
 }
 
 /// `nurbs_part`: the surface tessellated once and placed in the frame of

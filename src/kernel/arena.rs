@@ -7,6 +7,8 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
+use rayon::prelude::*;
+
 #[derive(Clone, Debug)]
 pub(crate) struct Arena<T> {
     slots: Vec<Option<T>>,
@@ -43,6 +45,27 @@ impl<T> Arena<T> {
     pub fn reserve(&mut self, additional: usize) {
         self.slots
             .reserve(additional.saturating_sub(self.free.len()));
+    }
+
+    /// Whether a freed slot waits to be reused (the next insert takes it,
+    /// not a new slot past the end).
+    pub fn has_free(&self) -> bool {
+        !self.free.is_empty()
+    }
+
+    /// Stores `values`, made in parallel, in new slots past the last one,
+    /// in order: the first gets slot [`Arena::capacity`]. Only when no
+    /// freed slot waits ([`Arena::has_free`]), or these would be the ids
+    /// inserting one by one gives.
+    pub fn par_extend_fresh<I>(&mut self, values: I)
+    where
+        I: IndexedParallelIterator<Item = T>,
+        T: Send,
+    {
+        debug_assert!(self.free.is_empty());
+        let before = self.slots.len();
+        self.slots.par_extend(values.map(Some));
+        self.live += self.slots.len() - before;
     }
 
     pub fn remove(&mut self, index: u32) -> Option<T> {

@@ -616,16 +616,15 @@ mod tests {
         };
         let mut unit = move || (next() >> 11) as f64 / (1u64 << 53) as f64;
         let mut m = IndexedMesh::new();
-        let corner =
-            |m: &mut IndexedMesh, i: usize, j: usize, unit: &mut dyn FnMut() -> f64| {
-                let p = [
-                    i as f64 + jitter * (unit() - 0.5),
-                    j as f64 + jitter * (unit() - 0.5),
-                    0.25 * ((i * j) % 3) as f64,
-                ];
-                m.positions.push(p);
-                (m.positions.len() - 1) as u32
-            };
+        let corner = |m: &mut IndexedMesh, i: usize, j: usize, unit: &mut dyn FnMut() -> f64| {
+            let p = [
+                i as f64 + jitter * (unit() - 0.5),
+                j as f64 + jitter * (unit() - 0.5),
+                0.25 * ((i * j) % 3) as f64,
+            ];
+            m.positions.push(p);
+            (m.positions.len() - 1) as u32
+        };
         for i in 0..cells {
             for j in 0..cells {
                 let a = corner(&mut m, i, j, &mut unit);

@@ -3,7 +3,9 @@
 //! - [`Mesh`] stores vertices, edges, loops and faces in index-based arenas
 //!   ([`ids`]) with disk, radial and boundary cycles ([`mesh`]).
 //! - [`euler`] holds the Euler operators, the only code that writes
-//!   adjacency; [`Mesh::validate`] checks every invariant.
+//!   adjacency (with `grid_build`, the bulk MakeTriangleGrid:
+//!   [`Mesh::append_triangle_grid`]); [`Mesh::validate`] checks every
+//!   invariant.
 //! - [`attrs`] holds named per-element attribute layers.
 //! - [`ops`] holds the high-level modelling operators built on Euler
 //!   operators, each returning a typed result naming what it made.
@@ -21,6 +23,7 @@ mod arena;
 pub mod attrs;
 pub mod build;
 pub mod euler;
+mod grid_build;
 pub mod ids;
 pub mod intersect;
 pub mod measure;
