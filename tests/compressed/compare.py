@@ -154,7 +154,9 @@ def blender_files(graftal, work):
         print("blender: not installed, its exporter not checked")
         return 0
     here = Path(__file__).parent
-    r = run(blender, "-b", "--factory-startup", "--python", here / "blender_export.py", "--", work)
+    # A failing script fails the run (Blender exits 0 on a Python error by
+    # default, which left only a missing file to report).
+    r = run(blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python", here / "blender_export.py", "--", work)
     draco = "DRACO yes" in r.stdout
     print(f"blender: exporter's Draco library {'found' if draco else 'missing (Debian builds Blender without it)'}")
     checked = 0

@@ -26,7 +26,9 @@ fi
 # Blender uses the system one); Blender itself is installed by
 # `make test-blender`, which CI runs first. Without Blender that part is
 # skipped (and said).
-if command -v blender >/dev/null && ! blender -b --factory-startup --python-expr "import numpy" >/dev/null 2>&1; then
+# (`--python-exit-code`: without it Blender exits 0 when the expression
+# fails, and the check would never install anything.)
+if command -v blender >/dev/null && ! blender -b --factory-startup --python-exit-code 1 --python-expr "import numpy" >/dev/null 2>&1; then
     echo "== installing python3-numpy for Blender's glTF importer (apt-get)"
     sudo=$([ "$(id -u)" -eq 0 ] && echo "" || echo sudo)
     install() { $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-numpy >"$work/apt.log" 2>&1; }
