@@ -35,7 +35,52 @@ fn primitives(program: &Program) -> u64 {
     (out.mesh.vert_count() + out.mesh.edge_count() + out.mesh.face_count()) as u64
 }
 
+/// Bytes per element of the kernel mesh the synthetic grammar grows to
+/// ~10⁶ primitives, part by part (issue 38, deliverable 3), printed once:
+/// what the records and layers hold, before the allocator's own overhead
+/// (the whole process's peak RSS per primitive is `make bench-scaling`).
+fn print_memory() {
+    let out = run(&synthetic(190), &RunOptions::default()).unwrap();
+    let mesh = &out.mesh;
+    let primitives = mesh.vert_count() + mesh.edge_count() + mesh.face_count();
+    println!(
+        "memory at {primitives} primitives ({} vertices, {} edges, {} loops, {} faces):",
+        mesh.vert_count(),
+        mesh.edge_count(),
+        mesh.loop_count(),
+        mesh.face_count()
+    );
+    let mut total = 0;
+    for part in mesh.memory() {
+        let per = if part.name.starts_with("vertex") || part.name.starts_with("Vert") {
+            mesh.vert_count()
+        } else if part.name.starts_with("edge") || part.name.starts_with("Edge") {
+            mesh.edge_count()
+        } else if part.name.starts_with("loop") {
+            mesh.loop_count()
+        } else {
+            mesh.face_count()
+        };
+        println!(
+            "  {:<24} {:>6.2} B per element, {:>5.1} B per primitive",
+            part.name,
+            part.used as f64 / per.max(1) as f64,
+            part.used as f64 / primitives as f64
+        );
+        total += part.used;
+    }
+    println!(
+        "  total                    {:>5.1} B per primitive",
+        total as f64 / primitives as f64
+    );
+}
+
 fn grammar(c: &mut Criterion) {
+    // Only when measuring (`cargo bench`), not when a test runner lists
+    // or smoke-runs the benchmarks.
+    if std::env::args().any(|a| a == "--bench") {
+        print_memory();
+    }
     let mut group = c.benchmark_group("grammar");
     group.sample_size(10);
     for n in [8u32, 26, 82, 190] {

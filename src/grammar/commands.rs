@@ -422,6 +422,29 @@ fn split_face(
     Ok(())
 }
 
+/// At most how many vertices, edges, loops and faces applying `plans`
+/// adds (what `apply` makes per plan, less the face a fan replaces), so
+/// the kernel grows once per step rather than doubling as it fills.
+fn growth(mesh: &Mesh, kind: CommandKind, plans: &[Plan], fans: &[Fan]) -> [usize; 4] {
+    let n = plans.len();
+    match kind {
+        CommandKind::CreateEdge => [n, n, 0, 0],
+        CommandKind::SplitEdge => {
+            let loops = plans
+                .iter()
+                .map(|p| mesh.edge_face_count(EdgeId::from_index(p.target())))
+                .sum();
+            [n, n, loops, 0]
+        }
+        CommandKind::CreateFace => [n, 2 * n, 3 * n, n],
+        CommandKind::SplitFace => fans.iter().fold([0; 4], |[v, e, l, f], fan| {
+            let k = fan.nodes.len();
+            [v + 1, e + k.max(1), l + 2 * k, f + k]
+        }),
+        CommandKind::EditNode => [0; 4],
+    }
+}
+
 /// Whether `a` and `b` follow each other around `ring`.
 fn ring_adjacent(ring: &[VertId], a: VertId, b: VertId) -> bool {
     let n = ring.len();
@@ -527,6 +550,8 @@ impl Runner<'_> {
         // Each plan adds at most a node, a few edges and faces per side.
         let coming: usize = 4 * plans.len() + fans.iter().map(|f| 2 * f.nodes.len()).sum::<usize>();
         self.check_size(mesh, step, coming)?;
+        let [verts, edges, loops, faces] = growth(mesh, command.kind, &plans, &fans);
+        mesh.reserve_growth(verts, edges, loops, faces);
         let policy = step.policy.unwrap_or(self.policy());
         let testing = policy == Policy::Intersect;
         // Plans apply in plan order (ascending target). Under `intersect` an

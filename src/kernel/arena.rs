@@ -47,6 +47,18 @@ impl<T> Arena<T> {
             .reserve(additional.saturating_sub(self.free.len()));
     }
 
+    /// Room for `additional` more elements, grown by at least an eighth
+    /// rather than doubled: a step that knows what it adds grows its
+    /// arenas once, and the spare capacity (which a reused heap block has
+    /// already touched) stays within 12.5 % while growth stays geometric,
+    /// so many small steps still copy each slot O(1) times.
+    pub fn reserve_growth(&mut self, additional: usize) {
+        let need = additional.saturating_sub(self.free.len());
+        if self.slots.capacity() - self.slots.len() < need {
+            self.slots.reserve_exact(need.max(self.slots.len() / 8));
+        }
+    }
+
     /// Whether a freed slot waits to be reused (the next insert takes it,
     /// not a new slot past the end).
     pub fn has_free(&self) -> bool {
@@ -108,6 +120,13 @@ impl<T> Arena<T> {
             .iter()
             .enumerate()
             .filter_map(|(i, slot)| slot.as_ref().map(|value| (i as u32, value)))
+    }
+
+    /// Bytes of the slots in use and of the slot vector's reserve, for the
+    /// memory report ([`crate::kernel::Mesh::memory`]).
+    pub fn bytes(&self) -> (usize, usize) {
+        let slot = std::mem::size_of::<Option<T>>();
+        (self.slots.len() * slot, self.slots.capacity() * slot)
     }
 
     /// Indices of free slots, for the validator.

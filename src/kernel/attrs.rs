@@ -7,6 +7,11 @@
 //! Layers are kept sorted by (domain, name) so iteration order, and
 //! therefore output, is deterministic.
 //!
+//! Scalar, vector and integer layers store, per slot, a narrow index into
+//! the layer's distinct values while values repeat (`pooled.rs`): turtle
+//! frames, ages and radii do, and this is most of the memory saved at 10⁶
+//! G³ primitives. Lineage keys never repeat and are stored plainly.
+//!
 //! Storage is a prefix: values are stored for slots `0..len()` and every
 //! slot past it holds the layer's default. A layer that is never given
 //! another value (the part and material of a model without looks, say)
@@ -21,14 +26,29 @@
 use glam::DVec3;
 
 use super::ids::Domain;
+use super::pooled::Stored;
 
-/// The stored prefix of one layer's values, indexed by slot.
+/// The stored prefix of one layer's values, indexed by slot (pooled while
+/// values repeat: `pooled.rs`).
 #[derive(Clone, Debug)]
 pub enum LayerData {
-    Scalar(Vec<f64>),
-    Vector(Vec<DVec3>),
-    Int(Vec<i32>),
-    Key(Vec<u64>),
+    Scalar(Stored<f64>),
+    Vector(Stored<DVec3>),
+    Int(Stored<i32>),
+    /// Lineage keys: never repeat, so never pooled.
+    Key(Stored<u64>),
+}
+
+/// Runs `$body` on the layer data's storage, whatever its kind.
+macro_rules! each {
+    ($data:expr, $v:ident => $body:expr) => {
+        match $data {
+            LayerData::Scalar($v) => $body,
+            LayerData::Vector($v) => $body,
+            LayerData::Int($v) => $body,
+            LayerData::Key($v) => $body,
+        }
+    };
 }
 
 /// The kind of value a layer stores.
@@ -97,10 +117,10 @@ impl PartialEq for Layer {
 impl Layer {
     fn new(name: &str, domain: Domain, default: AttrValue) -> Self {
         let data = match default {
-            AttrValue::Scalar(_) => LayerData::Scalar(Vec::new()),
-            AttrValue::Vector(_) => LayerData::Vector(Vec::new()),
-            AttrValue::Int(_) => LayerData::Int(Vec::new()),
-            AttrValue::Key(_) => LayerData::Key(Vec::new()),
+            AttrValue::Scalar(d) => LayerData::Scalar(Stored::pooled(d)),
+            AttrValue::Vector(d) => LayerData::Vector(Stored::pooled(d)),
+            AttrValue::Int(d) => LayerData::Int(Stored::pooled(d)),
+            AttrValue::Key(_) => LayerData::Key(Stored::plain()),
         };
         Self {
             name: name.to_owned(),
@@ -117,26 +137,38 @@ impl Layer {
     /// How many slots have a stored value (every later slot holds the
     /// default).
     pub fn len(&self) -> usize {
-        match &self.data {
-            LayerData::Scalar(v) => v.len(),
-            LayerData::Vector(v) => v.len(),
-            LayerData::Int(v) => v.len(),
-            LayerData::Key(v) => v.len(),
-        }
+        each!(&self.data, v => v.len())
     }
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
+    /// Bytes of the stored prefix (indices and distinct values) in use and
+    /// allocated.
+    pub fn bytes(&self) -> (usize, usize) {
+        each!(&self.data, v => v.bytes())
+    }
+
+    /// Room for `additional` more stored slots, grown as
+    /// [`super::arena::Arena::reserve_growth`] grows an arena.
+    fn reserve_growth(&mut self, additional: usize) {
+        let grow = additional.max(self.len() / 8);
+        each!(&mut self.data, v => {
+            if v.capacity() - v.len() < additional {
+                v.reserve_exact(grow);
+            }
+        })
+    }
+
     /// The value of `slot` (the default past the stored prefix).
     #[inline]
     pub fn get(&self, slot: usize) -> AttrValue {
         match &self.data {
-            LayerData::Scalar(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Scalar(x)),
-            LayerData::Vector(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Vector(x)),
-            LayerData::Int(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Int(x)),
-            LayerData::Key(v) => v.get(slot).map_or(self.default, |&x| AttrValue::Key(x)),
+            LayerData::Scalar(v) => v.get(slot).map_or(self.default, AttrValue::Scalar),
+            LayerData::Vector(v) => v.get(slot).map_or(self.default, AttrValue::Vector),
+            LayerData::Int(v) => v.get(slot).map_or(self.default, AttrValue::Int),
+            LayerData::Key(v) => v.get(slot).map_or(self.default, AttrValue::Key),
         }
     }
 
@@ -144,17 +176,17 @@ impl Layer {
     #[inline]
     pub fn scalar(&self, slot: usize) -> Option<f64> {
         match (&self.data, self.default) {
-            (LayerData::Scalar(v), AttrValue::Scalar(d)) => Some(v.get(slot).copied().unwrap_or(d)),
+            (LayerData::Scalar(v), AttrValue::Scalar(d)) => Some(v.get(slot).unwrap_or(d)),
             _ => None,
         }
     }
 
     fn extend_to(&mut self, len: usize) {
         match (&mut self.data, self.default) {
-            (LayerData::Scalar(v), AttrValue::Scalar(d)) => v.resize(len, d),
-            (LayerData::Vector(v), AttrValue::Vector(d)) => v.resize(len, d),
-            (LayerData::Int(v), AttrValue::Int(d)) => v.resize(len, d),
-            (LayerData::Key(v), AttrValue::Key(d)) => v.resize(len, d),
+            (LayerData::Scalar(v), AttrValue::Scalar(d)) => v.extend_to(len, d),
+            (LayerData::Vector(v), AttrValue::Vector(d)) => v.extend_to(len, d),
+            (LayerData::Int(v), AttrValue::Int(d)) => v.extend_to(len, d),
+            (LayerData::Key(v), AttrValue::Key(d)) => v.extend_to(len, d),
             _ => unreachable!("layer data and default always share a kind"),
         }
     }
@@ -168,6 +200,12 @@ impl Layer {
     }
 
     fn copy(&mut self, from: usize, to: usize) {
+        let len = self.len();
+        if from < len && to < len {
+            // Inside the prefix a pooled layer shares the value's index.
+            each!(&mut self.data, v => v.copy(from, to));
+            return;
+        }
         let value = self.get(from);
         self.store(to, value);
     }
@@ -210,10 +248,10 @@ impl Layer {
 
     fn write(&mut self, slot: usize, value: AttrValue) {
         match (&mut self.data, value) {
-            (LayerData::Scalar(v), AttrValue::Scalar(x)) => v[slot] = x,
-            (LayerData::Vector(v), AttrValue::Vector(x)) => v[slot] = x,
-            (LayerData::Int(v), AttrValue::Int(x)) => v[slot] = x,
-            (LayerData::Key(v), AttrValue::Key(x)) => v[slot] = x,
+            (LayerData::Scalar(v), AttrValue::Scalar(x)) => v.write(slot, x),
+            (LayerData::Vector(v), AttrValue::Vector(x)) => v.write(slot, x),
+            (LayerData::Int(v), AttrValue::Int(x)) => v.write(slot, x),
+            (LayerData::Key(v), AttrValue::Key(x)) => v.write(slot, x),
             _ => unreachable!("layer data and value share a kind (checked by the caller)"),
         }
     }
@@ -285,6 +323,17 @@ impl Attributes {
     pub(crate) fn on_new(&mut self, domain: Domain, slot: usize) {
         for layer in self.layers.iter_mut().filter(|l| l.domain == domain) {
             layer.reset(slot);
+        }
+    }
+
+    /// Reserves `additional` slots in each layer of `domain` whose stored
+    /// prefix reaches `slots` (every element so far was given a value, so
+    /// the new ones likely will be too).
+    pub(crate) fn reserve_growth(&mut self, domain: Domain, slots: usize, additional: usize) {
+        for layer in self.layers.iter_mut().filter(|l| l.domain == domain) {
+            if layer.len() >= slots {
+                layer.reserve_growth(additional);
+            }
         }
     }
 

@@ -29,13 +29,14 @@ pub mod intersect;
 pub mod measure;
 pub mod mesh;
 pub mod ops;
+mod pooled;
 pub mod validate;
 
 pub use attrs::{AttrValue, LayerKind};
 pub use euler::{JoinMap, KernelError};
 pub use ids::{Domain, EdgeId, FaceId, LoopId, VertId};
 pub use measure::MeshReport;
-pub use mesh::Mesh;
+pub use mesh::{MemoryPart, Mesh};
 pub use validate::ValidationError;
 
 #[cfg(test)]

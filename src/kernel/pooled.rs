@@ -1,0 +1,440 @@
+//! Layer storage as narrow indices into a table of distinct values.
+//!
+//! A G³ model's layers repeat values: a split edge copies its frame to the
+//! new half, a grown node takes its edge's frame, ages count steps, radii
+//! come from a few parameters. At 10⁶ primitives the synthetic grammar
+//! stores 857k headings and lefts but only 71k distinct ones, 5 distinct
+//! ages and 2 radii. So a layer keeps each distinct value once and, per
+//! slot, an index 1, 2 or 4 bytes wide (as wide as the table needs): the
+//! frames take about a third of their plain bytes, ages and radii an
+//! eighth or less (issue 38, deliverable 3).
+//!
+//! Values are interned bit for bit (`-0.0` and `0.0` stay apart): a copy
+//! shares the index, and a written value is looked up in a small
+//! direct-mapped cache of recent values, so equal values written close
+//! together share one entry without a hash map the size of the layer.
+//! When the table has doubled since it was last cleaned (and holds at
+//! least half as many values as slots), entries no slot uses any more are
+//! dropped and equal ones merged; if the values are then so many that
+//! indices and table outweigh a plain vector (a NURBS parameter per
+//! vertex), the layer turns into a plain vector for good. Every choice depends on
+//! the sequence of writes alone, never on addresses or threads, and reads
+//! return the same bits whichever form the layer is in.
+
+use glam::DVec3;
+use rustc_hash::FxHashMap;
+
+/// Entries of the recent-value cache (a power of two): small enough to stay
+/// in the first-level data cache, since every write of a new element's
+/// value looks here; what it misses, compaction merges.
+const TABLE: usize = 1 << 8;
+/// Below this many distinct values a layer always stays pooled.
+const MIN_POOL: usize = 1 << 12;
+
+/// A value a layer can intern: compared and hashed by its bits.
+pub trait PoolValue: Copy {
+    fn bits(self) -> [u64; 3];
+}
+
+impl PoolValue for f64 {
+    fn bits(self) -> [u64; 3] {
+        [self.to_bits(), 0, 0]
+    }
+}
+
+impl PoolValue for DVec3 {
+    fn bits(self) -> [u64; 3] {
+        self.to_array().map(f64::to_bits)
+    }
+}
+
+impl PoolValue for i32 {
+    fn bits(self) -> [u64; 3] {
+        [u64::from(self as u32), 0, 0]
+    }
+}
+
+impl PoolValue for u64 {
+    fn bits(self) -> [u64; 3] {
+        [self, 0, 0]
+    }
+}
+
+/// A layer's stored prefix: pooled while its values repeat, else plain.
+#[derive(Clone, Debug)]
+pub enum Stored<T> {
+    Pooled(Pooled<T>),
+    Plain(Vec<T>),
+}
+
+impl<T: PoolValue> Stored<T> {
+    /// Storage that pools values; `default` is what new slots hold.
+    pub fn pooled(default: T) -> Self {
+        Stored::Pooled(Pooled {
+            ids: Ids::U8(Vec::new()),
+            values: vec![default],
+            recent: Vec::new(),
+            compact_at: MIN_POOL,
+            last: EMPTY,
+        })
+    }
+
+    /// Storage for values that never repeat (lineage keys).
+    pub fn plain() -> Self {
+        Stored::Plain(Vec::new())
+    }
+
+    pub fn len(&self) -> usize {
+        match self {
+            Stored::Pooled(p) => p.ids.len(),
+            Stored::Plain(v) => v.len(),
+        }
+    }
+
+    pub fn capacity(&self) -> usize {
+        match self {
+            Stored::Pooled(p) => p.ids.capacity(),
+            Stored::Plain(v) => v.capacity(),
+        }
+    }
+
+    #[inline]
+    pub fn get(&self, slot: usize) -> Option<T> {
+        match self {
+            Stored::Pooled(p) => p.ids.get(slot).map(|i| p.values[i as usize]),
+            Stored::Plain(v) => v.get(slot).copied(),
+        }
+    }
+
+    /// Bytes in use and allocated.
+    pub fn bytes(&self) -> (usize, usize) {
+        let size = std::mem::size_of::<T>();
+        match self {
+            Stored::Pooled(p) => {
+                let (ids, ids_reserved) = p.ids.bytes();
+                let rest = p.recent.len() * std::mem::size_of::<Recent>();
+                (
+                    ids + p.values.len() * size + rest,
+                    ids_reserved + p.values.capacity() * size + rest,
+                )
+            }
+            Stored::Plain(v) => (v.len() * size, v.capacity() * size),
+        }
+    }
+
+    pub fn reserve_exact(&mut self, additional: usize) {
+        match self {
+            Stored::Pooled(p) => p.ids.reserve_exact(additional),
+            Stored::Plain(v) => v.reserve_exact(additional),
+        }
+    }
+
+    /// Grows the stored prefix to `len` slots holding `default`.
+    pub fn extend_to(&mut self, len: usize, default: T) {
+        match self {
+            Stored::Pooled(p) => p.ids.resize(len),
+            Stored::Plain(v) => v.resize(len, default),
+        }
+    }
+
+    /// Stores `value` in `slot` (inside the prefix).
+    pub fn write(&mut self, slot: usize, value: T) {
+        match self {
+            Stored::Pooled(p) => match p.intern(value) {
+                Some(id) => p.ids.set(slot, id),
+                None => {
+                    let mut plain = p.to_plain();
+                    plain[slot] = value;
+                    *self = Stored::Plain(plain);
+                }
+            },
+            Stored::Plain(v) => v[slot] = value,
+        }
+    }
+
+    /// Slot `to` takes slot `from`'s value (both inside the prefix).
+    pub fn copy(&mut self, from: usize, to: usize) {
+        match self {
+            Stored::Pooled(p) => {
+                let id = p.ids.get(from).expect("inside the prefix");
+                p.ids.set(to, id);
+            }
+            Stored::Plain(v) => v[to] = v[from],
+        }
+    }
+}
+
+/// Distinct values and an index per slot.
+#[derive(Clone, Debug)]
+pub struct Pooled<T> {
+    ids: Ids,
+    /// Distinct values; entry 0 is the layer's default.
+    values: Vec<T>,
+    /// Recently written values and their `values` index, by the hash of
+    /// their bits (the bits are kept here so a lookup reads one cache
+    /// line, not the table); allocated at the first non-default write.
+    recent: Vec<Recent>,
+    /// Table size that triggers the next compaction: twice what the last
+    /// one kept (so compactions cost O(1) a write), at least half the slots.
+    compact_at: usize,
+    /// The value written last and its index.
+    last: Recent,
+}
+
+/// An entry of the recent-value cache.
+#[derive(Copy, Clone, Debug)]
+struct Recent {
+    bits: [u64; 3],
+    /// `u32::MAX`: empty.
+    id: u32,
+}
+
+const EMPTY: Recent = Recent {
+    bits: [0; 3],
+    id: u32::MAX,
+};
+
+fn cache_slot([x, y, z]: [u64; 3]) -> usize {
+    let h = (x ^ y.rotate_left(21) ^ z.rotate_left(42)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    (h >> 56) as usize & (TABLE - 1)
+}
+
+impl<T: PoolValue> Pooled<T> {
+    /// The index of `value`, added if new; `None` when the values are
+    /// mostly distinct and the layer should be plain.
+    fn intern(&mut self, value: T) -> Option<u32> {
+        let bits = value.bits();
+        if bits == self.values[0].bits() {
+            return Some(0);
+        }
+        // A run of equal writes (a step's age, a radius parameter) stays
+        // out of the cache table.
+        if self.last.id != u32::MAX && self.last.bits == bits {
+            return Some(self.last.id);
+        }
+        if self.recent.is_empty() {
+            self.recent = vec![EMPTY; TABLE];
+        }
+        let at = cache_slot(bits);
+        let cached = self.recent[at];
+        if cached.id != u32::MAX && cached.bits == bits {
+            self.last = cached;
+            return Some(cached.id);
+        }
+        if self.values.len() >= self.compact_at {
+            self.compact();
+            // Plain once pooling no longer saves memory: indices of `w`
+            // bytes and the values cost more than the values per slot.
+            let (n, d) = (self.ids.len(), self.values.len());
+            let size = std::mem::size_of::<T>();
+            let w = if d > 1 << 16 { 4 } else { 2 };
+            if d >= MIN_POOL && d * size >= n * size.saturating_sub(w) {
+                return None;
+            }
+            self.compact_at = (2 * d).max(n / 2).max(MIN_POOL);
+        }
+        let id = u32::try_from(self.values.len()).ok()?;
+        self.values.push(value);
+        self.recent[at] = Recent { bits, id };
+        self.last = Recent { bits, id };
+        Some(id)
+    }
+
+    /// Drops the values no slot uses and merges equal ones the cache did
+    /// not catch, keeping the rest in order of first use by slot (so the
+    /// result depends on the slots alone), and forgets the cache.
+    fn compact(&mut self) {
+        let mut remap = vec![u32::MAX; self.values.len()];
+        remap[0] = 0;
+        let mut kept = vec![self.values[0]];
+        let mut by_bits: FxHashMap<[u64; 3], u32> = FxHashMap::default();
+        by_bits.insert(self.values[0].bits(), 0);
+        for slot in 0..self.ids.len() {
+            let old = self.ids.get(slot).expect("inside the prefix") as usize;
+            if remap[old] == u32::MAX {
+                let value = self.values[old];
+                let next = kept.len() as u32;
+                let id = *by_bits.entry(value.bits()).or_insert(next);
+                if id == next {
+                    kept.push(value);
+                }
+                remap[old] = id;
+            }
+            self.ids.set(slot, remap[old]);
+        }
+        self.values = kept;
+        self.recent.fill(EMPTY);
+        self.last = EMPTY;
+    }
+
+    fn to_plain(&self) -> Vec<T> {
+        (0..self.ids.len())
+            .map(|slot| self.values[self.ids.get(slot).expect("inside the prefix") as usize])
+            .collect()
+    }
+}
+
+/// Indices as narrow as the table allows: widened (once per width) when
+/// an index no longer fits.
+#[derive(Clone, Debug)]
+enum Ids {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    U32(Vec<u32>),
+}
+
+impl Ids {
+    fn len(&self) -> usize {
+        match self {
+            Ids::U8(v) => v.len(),
+            Ids::U16(v) => v.len(),
+            Ids::U32(v) => v.len(),
+        }
+    }
+
+    fn capacity(&self) -> usize {
+        match self {
+            Ids::U8(v) => v.capacity(),
+            Ids::U16(v) => v.capacity(),
+            Ids::U32(v) => v.capacity(),
+        }
+    }
+
+    fn bytes(&self) -> (usize, usize) {
+        match self {
+            Ids::U8(v) => (v.len(), v.capacity()),
+            Ids::U16(v) => (2 * v.len(), 2 * v.capacity()),
+            Ids::U32(v) => (4 * v.len(), 4 * v.capacity()),
+        }
+    }
+
+    #[inline]
+    fn get(&self, slot: usize) -> Option<u32> {
+        match self {
+            Ids::U8(v) => v.get(slot).map(|&i| u32::from(i)),
+            Ids::U16(v) => v.get(slot).map(|&i| u32::from(i)),
+            Ids::U32(v) => v.get(slot).copied(),
+        }
+    }
+
+    fn set(&mut self, slot: usize, id: u32) {
+        self.widen_for(id);
+        match self {
+            Ids::U8(v) => v[slot] = id as u8,
+            Ids::U16(v) => v[slot] = id as u16,
+            Ids::U32(v) => v[slot] = id,
+        }
+    }
+
+    /// Makes the indices wide enough to hold `id`.
+    fn widen_for(&mut self, id: u32) {
+        let wide = |v: &mut dyn Iterator<Item = u32>| -> Ids {
+            if id > u32::from(u16::MAX) {
+                Ids::U32(v.collect())
+            } else {
+                Ids::U16(v.map(|i| i as u16).collect())
+            }
+        };
+        match self {
+            Ids::U8(v) if id > u32::from(u8::MAX) => {
+                *self = wide(&mut v.iter().map(|&i| u32::from(i)));
+            }
+            Ids::U16(v) if id > u32::from(u16::MAX) => {
+                *self = wide(&mut v.iter().map(|&i| u32::from(i)));
+            }
+            _ => {}
+        }
+    }
+
+    fn resize(&mut self, len: usize) {
+        match self {
+            Ids::U8(v) => v.resize(len, 0),
+            Ids::U16(v) => v.resize(len, 0),
+            Ids::U32(v) => v.resize(len, 0),
+        }
+    }
+
+    fn reserve_exact(&mut self, additional: usize) {
+        match self {
+            Ids::U8(v) => v.reserve_exact(additional),
+            Ids::U16(v) => v.reserve_exact(additional),
+            Ids::U32(v) => v.reserve_exact(additional),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn values<T>(s: &Stored<T>) -> usize {
+        match s {
+            Stored::Pooled(p) => p.values.len(),
+            Stored::Plain(_) => usize::MAX,
+        }
+    }
+
+    #[test]
+    fn copies_and_repeated_values_share_one_entry() {
+        let mut s = Stored::pooled(DVec3::Z);
+        s.extend_to(100, DVec3::Z);
+        for slot in 0..50 {
+            s.write(slot, DVec3::X);
+        }
+        for slot in 50..100 {
+            s.copy(slot - 50, slot);
+        }
+        assert_eq!(values(&s), 2);
+        assert_eq!(s.get(99), Some(DVec3::X));
+        assert_eq!(s.get(100), None);
+        s.write(3, DVec3::Z);
+        assert_eq!(values(&s), 2, "the default is entry 0");
+        assert_eq!(s.get(3), Some(DVec3::Z));
+        assert_eq!(s.bytes().0, 100 + 2 * 24 + 32 * TABLE, "one byte a slot");
+    }
+
+    #[test]
+    fn zero_and_negative_zero_stay_apart() {
+        let mut s = Stored::pooled(0.0f64);
+        s.extend_to(2, 0.0);
+        s.write(1, -0.0);
+        assert!(s.get(1).unwrap().is_sign_negative());
+        assert!(s.get(0).unwrap().is_sign_positive());
+    }
+
+    /// Random writes and copies read back exactly, through every index
+    /// width, compactions and the turn to a plain vector.
+    #[test]
+    fn reads_never_change_through_widening_compaction_and_plain() {
+        for distinct in [3u32, 300, 70_000, 1_000_000] {
+            let n = 20_000;
+            let mut s = Stored::pooled(-1i32);
+            s.extend_to(n, -1);
+            let mut expect = vec![-1i32; n];
+            let mut x = 12345u64;
+            for k in 0..200_000u64 {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let slot = (x >> 33) as usize % n;
+                if k % 5 == 0 {
+                    let from = (x >> 13) as usize % n;
+                    s.copy(from, slot);
+                    expect[slot] = expect[from];
+                } else {
+                    let v = ((x >> 40) as u32 % distinct) as i32;
+                    s.write(slot, v);
+                    expect[slot] = v;
+                }
+            }
+            for (slot, v) in expect.iter().enumerate() {
+                assert_eq!(s.get(slot), Some(*v), "{distinct} distinct, slot {slot}");
+            }
+            let plain = matches!(s, Stored::Plain(_));
+            assert_eq!(plain, distinct >= 70_000, "{distinct} distinct");
+            if !plain {
+                assert!(values(&s) <= (n / 2).max(MIN_POOL) + 1);
+            }
+        }
+    }
+}
