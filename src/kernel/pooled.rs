@@ -17,9 +17,9 @@
 //! least half as many values as slots), entries no slot uses any more are
 //! dropped and equal ones merged; if the values are then so many that
 //! indices and table outweigh a plain vector (a NURBS parameter per
-//! vertex), the layer turns into a plain vector for good. Every choice depends on
-//! the sequence of writes alone, never on addresses or threads, and reads
-//! return the same bits whichever form the layer is in.
+//! vertex), the layer turns into a plain vector for good. Every choice
+//! depends on the sequence of writes alone, never on addresses or
+//! threads, and reads return the same bits whichever form the layer is in.
 
 use glam::DVec3;
 use rustc_hash::FxHashMap;
@@ -328,22 +328,16 @@ impl Ids {
 
     /// Makes the indices wide enough to hold `id`.
     fn widen_for(&mut self, id: u32) {
-        let wide = |v: &mut dyn Iterator<Item = u32>| -> Ids {
-            if id > u32::from(u16::MAX) {
-                Ids::U32(v.collect())
-            } else {
-                Ids::U16(v.map(|i| i as u16).collect())
-            }
+        let narrow: Vec<u32> = match self {
+            Ids::U8(v) if id > u32::from(u8::MAX) => v.iter().map(|&i| u32::from(i)).collect(),
+            Ids::U16(v) if id > u32::from(u16::MAX) => v.iter().map(|&i| u32::from(i)).collect(),
+            _ => return,
         };
-        match self {
-            Ids::U8(v) if id > u32::from(u8::MAX) => {
-                *self = wide(&mut v.iter().map(|&i| u32::from(i)));
-            }
-            Ids::U16(v) if id > u32::from(u16::MAX) => {
-                *self = wide(&mut v.iter().map(|&i| u32::from(i)));
-            }
-            _ => {}
-        }
+        *self = if id > u32::from(u16::MAX) {
+            Ids::U32(narrow)
+        } else {
+            Ids::U16(narrow.into_iter().map(|i| i as u16).collect())
+        };
     }
 
     fn resize(&mut self, len: usize) {
