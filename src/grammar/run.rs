@@ -626,14 +626,17 @@ impl Runner<'_> {
                 return Ok(self.run_call(mesh, step, call, &[], tally)?.made);
             }
         }
-        let candidates = self.candidates(mesh, step);
-        tally.candidates = candidates.len();
+        // Candidates stream through the select: the matched list is all
+        // that lives through the step (a list of every primitive would be
+        // 3 MB at 10⁶ primitives, and a hole in the heap after it).
         let extra = match &step.op {
             Op::Compound { index, .. } => self.program.compounds[*index].select.as_ref(),
             _ => None,
         };
-        let matched: Vec<usize> = candidates
-            .into_iter()
+        let mut candidates = 0;
+        let matched: Vec<usize> = self
+            .candidates(mesh, step)
+            .inspect(|_| candidates += 1)
             .filter(|&i| {
                 [step.select.as_ref(), extra]
                     .into_iter()
@@ -641,6 +644,7 @@ impl Runner<'_> {
                     .all(|c| self.eval(mesh, step, generation, i, step.domain, c) != 0.0)
             })
             .collect();
+        tally.candidates = candidates;
         tally.matched = matched.len();
         match &step.op {
             Op::Command(command) => self.run_command(mesh, step, command, &matched, tally),
@@ -784,13 +788,13 @@ impl Runner<'_> {
         c.expr.eval_with(&mut source)
     }
 
-    /// Candidates in ascending id order.
-    pub(super) fn candidates(&self, mesh: &Mesh, step: &Step) -> Vec<usize> {
-        let alive = |i: usize| match step.domain {
-            Domain::Vert => mesh.contains_vert(VertId::from_index(i)),
-            Domain::Edge => mesh.contains_edge(EdgeId::from_index(i)),
-            Domain::Face => mesh.contains_face(FaceId::from_index(i)),
-        };
+    /// Candidates in ascending id order: a stream over the mesh, or the
+    /// list a `from` or the scope names.
+    pub(super) fn candidates<'m>(
+        &self,
+        mesh: &'m Mesh,
+        step: &Step,
+    ) -> Box<dyn Iterator<Item = usize> + 'm> {
         if let Some(uids) = &step.from {
             let mut ids: Vec<usize> = Vec::new();
             for &uid in uids {
@@ -803,15 +807,20 @@ impl Runner<'_> {
             }
             ids.sort_unstable();
             ids.dedup();
-            return ids.into_iter().filter(|&i| alive(i)).collect();
+            let domain = step.domain;
+            return Box::new(ids.into_iter().filter(move |&i| match domain {
+                Domain::Vert => mesh.contains_vert(VertId::from_index(i)),
+                Domain::Edge => mesh.contains_edge(EdgeId::from_index(i)),
+                Domain::Face => mesh.contains_face(FaceId::from_index(i)),
+            }));
         }
         if let Some(scope) = self.scopes.last() {
-            return scope.members(mesh, step.domain);
+            return Box::new(scope.members(mesh, step.domain).into_iter());
         }
         match step.domain {
-            Domain::Vert => mesh.vert_ids().map(|v| v.index()).collect(),
-            Domain::Edge => mesh.edge_ids().map(|e| e.index()).collect(),
-            Domain::Face => mesh.face_ids().map(|f| f.index()).collect(),
+            Domain::Vert => Box::new(mesh.vert_ids().map(|v| v.index())),
+            Domain::Edge => Box::new(mesh.edge_ids().map(|e| e.index())),
+            Domain::Face => Box::new(mesh.face_ids().map(|f| f.index())),
         }
     }
 

@@ -201,8 +201,17 @@ impl Layer {
 
     fn copy(&mut self, from: usize, to: usize) {
         let len = self.len();
-        if from < len && to < len {
-            // Inside the prefix a pooled layer shares the value's index.
+        if from < len {
+            if to >= len {
+                if self.get(from).same_bits(self.default) {
+                    return;
+                }
+                self.extend_to(to + 1);
+            }
+            // A pooled layer shares the value's index: a new element (past
+            // the prefix) copying an old one's frame must not add the frame
+            // to the table again (the cache of recent values rarely holds
+            // it), where the next write would leave it dead.
             each!(&mut self.data, v => v.copy(from, to));
             return;
         }
@@ -371,6 +380,29 @@ mod tests {
 
     fn layer(default: AttrValue) -> Layer {
         Layer::new("x", Domain::Vert, default)
+    }
+
+    /// A new element past the stored prefix copying an old one's value
+    /// shares its entry: the table gains nothing (G³ nodes copy a frame
+    /// written long before, which the cache of recent values has lost).
+    #[test]
+    fn a_copy_past_the_prefix_shares_the_value() {
+        let mut l = layer(AttrValue::Vector(DVec3::ZERO));
+        let n = 3000;
+        for slot in 0..n {
+            let v = DVec3::new(slot as f64 + 1.0, 2.0, 3.0);
+            l.set(slot, AttrValue::Vector(v)).unwrap();
+        }
+        let before = l.bytes().0;
+        l.copy(0, 2 * n);
+        assert_eq!(l.get(2 * n), l.get(0));
+        assert_eq!(l.get(2 * n - 1), AttrValue::Vector(DVec3::ZERO));
+        // Two-byte indices for the n + 1 new slots, no new value.
+        assert_eq!(l.bytes().0 - before, 2 * (n + 1));
+        // A default copied past the prefix stores nothing.
+        let len = l.len();
+        l.copy(2 * n - 1, 3 * n);
+        assert_eq!(l.len(), len);
     }
 
     #[test]
