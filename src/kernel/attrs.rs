@@ -153,12 +153,7 @@ impl Layer {
     /// Room for `additional` more stored slots, grown as
     /// [`super::arena::Arena::reserve_growth`] grows an arena.
     fn reserve_growth(&mut self, additional: usize) {
-        let grow = additional.max(self.len() / 8);
-        each!(&mut self.data, v => {
-            if v.capacity() - v.len() < additional {
-                v.reserve_exact(grow);
-            }
-        })
+        each!(&mut self.data, v => v.reserve_growth(additional))
     }
 
     /// The value of `slot` (the default past the stored prefix).

@@ -24,12 +24,26 @@
 use glam::DVec3;
 use rustc_hash::FxHashMap;
 
+use super::arena::reserve_growth;
+
 /// Entries of the recent-value cache (a power of two): small enough to stay
 /// in the first-level data cache, since every write of a new element's
 /// value looks here; what it misses, compaction merges.
 const TABLE: usize = 1 << 8;
 /// Below this many distinct values a layer always stays pooled.
 const MIN_POOL: usize = 1 << 12;
+
+/// Runs `$body` on the index vector, whatever its width.
+macro_rules! each_width {
+    ($ids:expr, $v:ident => $body:expr) => {
+        match $ids {
+            Ids::U8($v) => $body,
+            Ids::U16($v) => $body,
+            Ids::U24($v) => $body,
+            Ids::U32($v) => $body,
+        }
+    };
+}
 
 /// A value a layer can intern: compared and hashed by its bits.
 pub trait PoolValue: Copy {
@@ -91,13 +105,6 @@ impl<T: PoolValue> Stored<T> {
         }
     }
 
-    pub fn capacity(&self) -> usize {
-        match self {
-            Stored::Pooled(p) => p.ids.capacity(),
-            Stored::Plain(v) => v.capacity(),
-        }
-    }
-
     #[inline]
     pub fn get(&self, slot: usize) -> Option<T> {
         match self {
@@ -122,10 +129,11 @@ impl<T: PoolValue> Stored<T> {
         }
     }
 
-    pub fn reserve_exact(&mut self, additional: usize) {
+    /// Room for `additional` more slots ([`reserve_growth`]).
+    pub fn reserve_growth(&mut self, additional: usize) {
         match self {
-            Stored::Pooled(p) => p.ids.reserve_exact(additional),
-            Stored::Plain(v) => v.reserve_exact(additional),
+            Stored::Pooled(p) => each_width!(&mut p.ids, v => reserve_growth(v, additional)),
+            Stored::Plain(v) => reserve_growth(v, additional),
         }
     }
 
@@ -227,7 +235,7 @@ impl<T: PoolValue> Pooled<T> {
             // bytes and the values cost more than the values per slot.
             let (n, d) = (self.ids.len(), self.values.len());
             let size = std::mem::size_of::<T>();
-            let w = width_of(d as u32).max(2);
+            let w = width_of(d as u32);
             if d >= MIN_POOL && d * size >= n * size.saturating_sub(w) {
                 return None;
             }
@@ -274,17 +282,14 @@ impl<T: PoolValue> Pooled<T> {
     }
 }
 
-/// Grows `v` to `len` entries of `fill`, reserving at least an eighth
-/// more, not double: a frame layer's indices grow a slot at a time as
-/// elements are made and widen once or twice, and doubling left up to half
-/// of each index vector reserved in heap blocks it then copied out of.
-/// Measured at 10⁶ G³ primitives: 6 MB less peak RSS (the same growth for
-/// plain lineage keys, which the per-step reserve already sizes, measured
-/// 1 MB worse). An eighth still copies each entry O(1) times.
+/// Grows `v` to `len` entries of `fill`, by [`reserve_growth`] rather
+/// than doubling: a frame layer's indices grow a slot at a time as
+/// elements are made and widen once or twice. Measured at 10⁶ G³
+/// primitives: 6 MB less peak RSS than doubling (the same for plain
+/// lineage keys, which the per-step reserve already sizes, measured 1 MB
+/// worse, so they keep `Vec::resize`).
 fn grow_to<T: Clone>(v: &mut Vec<T>, len: usize, fill: T) {
-    if len > v.capacity() {
-        v.reserve_exact((len - v.len()).max(v.len() / 8));
-    }
+    reserve_growth(v, len.saturating_sub(v.len()));
     v.resize(len, fill);
 }
 
@@ -297,18 +302,6 @@ enum Ids {
     U16(Vec<u16>),
     U24(Vec<[u8; 3]>),
     U32(Vec<u32>),
-}
-
-/// Runs `$body` on the index vector, whatever its width.
-macro_rules! each_width {
-    ($ids:expr, $v:ident => $body:expr) => {
-        match $ids {
-            Ids::U8($v) => $body,
-            Ids::U16($v) => $body,
-            Ids::U24($v) => $body,
-            Ids::U32($v) => $body,
-        }
-    };
 }
 
 /// Bytes an index needs to hold `id`.
@@ -393,10 +386,6 @@ impl Ids {
     fn resize(&mut self, len: usize) {
         each_width!(self, v => grow_to(v, len, Default::default()))
     }
-
-    fn reserve_exact(&mut self, additional: usize) {
-        each_width!(self, v => v.reserve_exact(additional))
-    }
 }
 
 #[cfg(test)]
@@ -460,8 +449,9 @@ mod tests {
         assert!(s.get(0).unwrap().is_sign_positive());
     }
 
-    /// Random writes and copies read back exactly, through every index
-    /// width, compactions and the turn to a plain vector.
+    /// Random writes and copies read back exactly, through one- and
+    /// two-byte indices, compactions and the turn to a plain vector (three
+    /// bytes: `past_two_bytes_an_index_takes_three`).
     #[test]
     fn reads_never_change_through_widening_compaction_and_plain() {
         for distinct in [3u32, 300, 70_000, 1_000_000] {
