@@ -75,7 +75,10 @@ fn step(mesh: &mut Mesh, rng: &mut Rng) -> &'static str {
                 let (a, b) = (pick(rng, &ring).unwrap(), pick(rng, &ring).unwrap());
                 // Half the time the pieces restart at a corner (of the
                 // face or not): what triangulate's quad split does.
-                if rng.unit() < 0.5 {
+                if let Some(loops) = mesh.quad_loops(f).filter(|_| rng.unit() < 0.5) {
+                    // The closed-form quad split, along either diagonal.
+                    let _ = mesh.split_quad(f, loops, rng.unit() < 0.5);
+                } else if rng.unit() < 0.5 {
                     let first = pick(rng, &verts).unwrap_or(a);
                     let _ = mesh.split_face_starting_at(f, a, b, first);
                 } else {

@@ -198,6 +198,23 @@ fn triangulate_impl(points: &[DVec3], out: &mut Vec<[u32; 3]>, want_normal: bool
     Some(normal)
 }
 
+/// Which diagonal [`triangulate`] splits a quad along, for a caller that
+/// already has the quad's [`unit_normal`] (the kernel stores it, fresh):
+/// `Some(true)` for 0–2 (triangles `[0, 1, 2]`, `[0, 2, 3]`), `Some(false)`
+/// for 1–3 (`[1, 2, 3]`, `[1, 3, 0]`), `None` when neither diagonal gives
+/// two triangles facing along the normal (bow-ties and worse: `triangulate`
+/// takes its general path). A degenerate quad (`normal` is `None`) is a fan
+/// from corner 0, so 0–2. The same decision, bit for bit, as `triangulate`.
+pub fn quad_split_along_0_2(points: &[DVec3; 4], normal: Option<DVec3>) -> Option<bool> {
+    let Some(normal) = normal else {
+        return Some(true);
+    };
+    // A unit normal means the corners are finite, so the frame exists.
+    let frame = Frame::new(points)?;
+    let local = points.map(|p| frame.local(p));
+    split_quad(&local, normal).map(|tris| tris[0] == [0, 1, 2])
+}
+
 /// The ring's bounding-box frame. Local coordinates are `p - centre` when the extent is in a
 /// safe range (no overflow or underflow in cross products: the fast common case), else
 /// `(p - centre) / extent` (scale-free, for extreme magnitudes). `unit()` is the extent of the
@@ -771,6 +788,43 @@ mod tests {
             assert_eq!(a, b);
             assert_eq!(normal, unit_normal(&ring));
         }
+    }
+
+    #[test]
+    fn quad_split_along_0_2_is_the_diagonal_triangulate_takes() {
+        // Random quads on a small integer lattice (so collinear, repeated,
+        // bow-tie and non-planar corners all come up), at three scales
+        // including the rescaled frame; where the decision is `None`,
+        // triangulate takes neither clean split of `split_quad`.
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut coord = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 33) % 5) as f64 - 2.0
+        };
+        let (mut decided, mut general) = (0, 0);
+        for i in 0..20_000 {
+            let scale = [1.0, 1e-3, 1e-120][i % 3];
+            let flat = i % 2 == 0;
+            let quad: [DVec3; 4] = std::array::from_fn(|_| {
+                let (x, y) = (coord(), coord());
+                let z = if flat { 0.0 } else { coord() };
+                DVec3::new(x, y, z) * scale
+            });
+            let got = tris(&quad);
+            match quad_split_along_0_2(&quad, unit_normal(&quad)) {
+                Some(true) => assert!(got == [[0, 1, 2], [0, 2, 3]], "{quad:?}: {got:?}"),
+                Some(false) => assert_eq!(got, [[1, 2, 3], [1, 3, 0]], "{quad:?}"),
+                None => {
+                    assert!(got != [[0, 1, 2], [0, 2, 3]] && got != [[1, 2, 3], [1, 3, 0]]);
+                    general += 1;
+                    continue;
+                }
+            }
+            decided += 1;
+        }
+        assert!(decided > 10_000 && general > 100, "{decided} {general}");
     }
 
     #[test]

@@ -572,6 +572,119 @@ impl Mesh {
         Ok((g, e))
     }
 
+    /// The four corners of quad `f` from its first, or `None` when `f` is
+    /// not a quad. Panics on a dead id.
+    pub fn quad_loops(&self, f: FaceId) -> Option<[LoopId; 4]> {
+        let face = self.face(f);
+        if face.len != 4 {
+            return None;
+        }
+        let l0 = face.first_loop;
+        let l1 = self.lp(l0).next;
+        let l2 = self.lp(l1).next;
+        Some([l0, l1, l2, self.lp(l2).next])
+    }
+
+    /// SplitQuad: [`Mesh::split_face_starting_at`] for a quad whose corners
+    /// `loops` ([`Mesh::quad_loops`]) the caller has read, along its 0–2
+    /// diagonal or its 1–3 one, in closed form: the same records, ids,
+    /// cycles and normals as that operator, without its searches (the
+    /// corners are known, each piece's first loop and length too).
+    /// `triangulate` splits every quad this way (issue 38: the row where
+    /// graftal was furthest behind its peers). Returns the new face, the
+    /// diagonal and whether the diagonal was made (another face may have
+    /// made it already).
+    pub fn split_quad(
+        &mut self,
+        f: FaceId,
+        loops: [LoopId; 4],
+        along_0_2: bool,
+    ) -> (FaceId, EdgeId, bool) {
+        let split = self.split_quad_unrefreshed(f, loops, along_0_2);
+        self.refresh_normal(f);
+        self.refresh_normal(split.0);
+        split
+    }
+
+    /// [`Mesh::split_quad`] leaving both pieces' stored normals to the
+    /// caller (`triangulate` refreshes every piece in one parallel pass).
+    pub(in crate::kernel) fn split_quad_unrefreshed(
+        &mut self,
+        f: FaceId,
+        loops: [LoopId; 4],
+        along_0_2: bool,
+    ) -> (FaceId, EdgeId, bool) {
+        let [l0, l1, l2, l3] = loops;
+        let [v0, v1, v2, v3] = loops.map(|l| self.lp(l).vert);
+        // `split_face_unrefreshed(f, a, b)` with la, lb the loops at a, b:
+        // f keeps a .. before_b and the closing b → a, the new face g
+        // takes b .. before_a and a → b.
+        let (a, b, la, lb, before_a, before_b) = if along_0_2 {
+            (v0, v2, l0, l2, l3, l1)
+        } else {
+            (v3, v1, l3, l1, l2, l0)
+        };
+        let (e, made) = match self.find_edge(a, b) {
+            Some(e) => (e, false),
+            None => (self.new_edge_unchecked(a, b), true),
+        };
+        let g = FaceId::from_raw(self.faces.insert(Face {
+            first_loop: lb,
+            len: 3,
+            normal: DVec3::ZERO,
+        }));
+        self.attributes.on_new(Domain::Face, g.index());
+        self.copy_face_attrs(f, g);
+        // The two closing loops are written with their boundary links;
+        // a new diagonal's radial cycle is just the pair (what two
+        // `radial_insert`s leave).
+        let closing_f = LoopId::from_raw(self.loops.insert(Loop {
+            vert: b,
+            edge: e,
+            face: f,
+            next: la,
+            prev: before_b,
+            radial_next: la,
+            radial_prev: la,
+        }));
+        let closing_g = LoopId::from_raw(self.loops.insert(Loop {
+            vert: a,
+            edge: e,
+            face: g,
+            next: lb,
+            prev: before_a,
+            radial_next: closing_f,
+            radial_prev: closing_f,
+        }));
+        if made {
+            let cf = self.loop_mut(closing_f);
+            cf.radial_next = closing_g;
+            cf.radial_prev = closing_g;
+            self.edge_mut(e).first_loop = Some(closing_f);
+        } else {
+            self.radial_insert(closing_f, e);
+            self.radial_insert(closing_g, e);
+        }
+        self.loop_mut(before_b).next = closing_f;
+        self.loop_mut(la).prev = closing_f;
+        let lp = self.loop_mut(before_a);
+        lp.next = closing_g;
+        lp.face = g;
+        let lp = self.loop_mut(lb);
+        lp.prev = closing_g;
+        lp.face = g;
+        // Each piece restarts at corner 0 where it has it: f always (at
+        // l0), g only along 0–2 (at its closing loop); along 1–3 g keeps
+        // starting at corner 1.
+        if along_0_2 {
+            self.face_mut(g).first_loop = closing_g;
+        }
+        let fc = self.face_mut(f);
+        fc.len = 3;
+        fc.first_loop = l0;
+        (g, e, made)
+    }
+
     /// The topology of [`Mesh::split_face`]; both pieces' stored normals
     /// are left for the caller to refresh.
     pub(in crate::kernel) fn split_face_unrefreshed(

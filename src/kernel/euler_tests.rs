@@ -452,3 +452,46 @@ fn join_mesh_appends_a_copy_with_attributes() {
         Some(AttrValue::Int(7))
     );
 }
+
+#[test]
+fn split_quad_writes_what_split_face_starting_at_writes() {
+    // The same ids, cycles, lengths, first loops and stored normals, for
+    // both diagonals; with the diagonal new, already a wire edge, already
+    // another face's side; and with freed slots to reuse.
+    for along_0_2 in [true, false] {
+        for setup in ["new", "wire", "shared", "freed"] {
+            let (mut a, v, f0, f1) = two_quads();
+            // Lift a corner so the two pieces' normals differ.
+            a.move_vert(v[4], v3(0.5, 1.0, 0.3));
+            let ring0 = ring(&a, f0);
+            let (x, y) = if along_0_2 {
+                (ring0[0], ring0[2])
+            } else {
+                (ring0[3], ring0[1])
+            };
+            match setup {
+                "wire" => {
+                    a.make_edge(x, y).unwrap();
+                }
+                "shared" => {
+                    let w = a.make_vert(v3(0.2, 0.5, 1.0));
+                    a.make_face(&[x, y, w]).unwrap();
+                }
+                "freed" => {
+                    a.kill_face(f1).unwrap();
+                    a.kill_edge(a.find_edge(v[2], v[5]).unwrap()).unwrap();
+                }
+                _ => {}
+            }
+            let mut b = a.clone();
+            let existed = a.find_edge(x, y).is_some();
+            let (ga, ea) = a.split_face_starting_at(f0, x, y, ring0[0]).unwrap();
+            let loops = b.quad_loops(f0).unwrap();
+            let (gb, eb, made) = b.split_quad(f0, loops, along_0_2);
+            assert_eq!((gb, eb, made), (ga, ea, !existed), "{setup} {along_0_2}");
+            assert_eq!(format!("{b:?}"), format!("{a:?}"), "{setup} {along_0_2}");
+            b.validate().unwrap();
+            assert_eq!(b.quad_loops(f0), None);
+        }
+    }
+}

@@ -16,11 +16,12 @@
 use std::collections::VecDeque;
 
 use glam::DVec3;
+use rayon::prelude::*;
 use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::{canonical, OpError, Selection};
 use crate::geom::polygon;
-use crate::kernel::{EdgeId, FaceId, KernelError, Mesh, VertId};
+use crate::kernel::{EdgeId, FaceId, KernelError, LoopId, Mesh, VertId};
 
 /// One face on a closed ring of existing edges, given in any order.
 ///
@@ -97,7 +98,9 @@ pub fn make_face_from_edges(mesh: &mut Mesh, edges: &[EdgeId]) -> Result<Selecti
 /// wound like it. A quad is split in place (it keeps its id on the triangle
 /// with its first side; the other is a new face); a larger face is killed
 /// and its triangles made anew. Every triangle starts at its lowest ring
-/// position, so both ways list corners alike.
+/// position, so both ways list corners alike. Quads (nearly all faces)
+/// decide their diagonal in parallel and split in closed form
+/// ([`Mesh::split_quad`]); the outputs do not depend on the thread count.
 ///
 /// Result: the triangles now covering the given faces (given triangles
 /// included, untouched) and the new diagonal edges.
@@ -124,78 +127,105 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
     // smaller degree) so a 100k-gon stays linear.
     const SCANNED_RING: u32 = 16;
     let mut diagonals: Vec<((u32, u32), EdgeId)> = Vec::new();
-    for f in faces {
-        ring.clear();
-        sides.clear();
-        points.clear();
-        for l in mesh.face_loops(f) {
-            let v = mesh.loop_vert(l);
-            ring.push(v);
-            sides.push(mesh.loop_edge(l));
-            points.push(mesh.position(v));
-        }
-        if ring.len() == 3 {
-            result.faces.push(f);
-            continue;
-        }
-        ring_triangles(&points, &mut triangles);
-        if ring.len() == 4 {
-            // A quad splits in place along its diagonal (one edge, one face
-            // and two loops, where rebuilding makes two faces and six
-            // loops): it keeps its id on the triangle with its first side,
-            // the new face gets its third, and both start at its first
-            // corner, listed as a rebuild would list them.
-            let along_0_2 = triangles.contains(&[0, 1, 2]);
-            let (a, b) = if along_0_2 {
-                (ring[0], ring[2])
-            } else {
-                (ring[3], ring[1])
-            };
-            let edges_before = mesh.edge_count();
-            let (g, e) = mesh.split_face_starting_at(f, a, b, ring[0])?;
-            if mesh.edge_count() > edges_before {
-                result.edges.push(e);
+    // Each quad's diagonal, decided in parallel (a pure function of its
+    // corners and its stored normal, fresh by construction: the one
+    // `ring_triangles` picks, without gathering the ring); its pieces'
+    // normals are refreshed in one parallel pass at the end.
+    let view: &Mesh = mesh;
+    let plans: Vec<Option<([LoopId; 4], Option<bool>)>> = faces
+        .par_iter()
+        .with_min_len(1024)
+        .map(|&f| {
+            let loops = view.quad_loops(f)?;
+            let corners = loops.map(|l| view.position(view.loop_vert(l)));
+            let normal = view.face_normal(f);
+            let normal = (normal != DVec3::ZERO).then_some(normal);
+            Some((loops, polygon::quad_split_along_0_2(&corners, normal)))
+        })
+        .collect();
+    let quads = plans.iter().filter(|plan| plan.is_some()).count();
+    let mut split = Vec::with_capacity(2 * quads);
+    result.faces.reserve(2 * quads);
+    result.edges.reserve(quads);
+    // Every split quad gets its normals back even if a later face fails.
+    let split_all = || -> Result<(), OpError> {
+        for (f, plan) in faces.into_iter().zip(plans) {
+            if let Some((loops, decided)) = plan {
+                // A quad splits in place along its diagonal (one edge, one face
+                // and two loops, where rebuilding makes two faces and six
+                // loops): it keeps its id on the triangle with its first side,
+                // the new face gets its third, and both start at its first
+                // corner, listed as a rebuild would list them. Only a quad
+                // neither diagonal splits well takes the general path.
+                let along_0_2 = decided.unwrap_or_else(|| {
+                    let corners = loops.map(|l| mesh.position(mesh.loop_vert(l)));
+                    ring_triangles(&corners, &mut triangles);
+                    triangles.contains(&[0, 1, 2])
+                });
+                let (g, e, made) = mesh.split_quad_unrefreshed(f, loops, along_0_2);
+                if made {
+                    result.edges.push(e);
+                }
+                result.faces.extend([f, g]);
+                split.extend([f, g]);
+                continue;
             }
-            result.faces.extend([f, g]);
-            continue;
-        }
-        let n = ring.len() as u32;
-        diagonals.clear();
-        for tri in &triangles {
-            let corners = tri.map(|i| ring[i as usize]);
-            // Ring sides are the face's own edges. Each diagonal is shared
-            // by two triangles: the first looks it up (another face may
-            // have made it) or makes it, the second finds it in
-            // `diagonals` when the ring is small enough to scan.
-            let mut edges = [sides[0]; 3];
-            for k in 0..3 {
-                // Corners are ascending, so the closing side runs high to
-                // low: keys are (low, high).
-                let (i, j) = (tri[k], tri[(k + 1) % 3]);
-                let key = (i.min(j), i.max(j));
-                edges[k] = if key.1 == key.0 + 1 {
-                    sides[key.0 as usize]
-                } else if key == (0, n - 1) {
-                    sides[key.1 as usize]
-                } else if let Some(&(_, e)) = diagonals.iter().find(|d| d.0 == key) {
-                    e
-                } else {
-                    let (e, made) = mesh.find_or_make_edge(corners[k], corners[(k + 1) % 3])?;
-                    if made {
-                        result.edges.push(e);
-                    }
-                    if n <= SCANNED_RING {
-                        diagonals.push((key, e));
-                    }
-                    e
-                };
+            ring.clear();
+            sides.clear();
+            points.clear();
+            for l in mesh.face_loops(f) {
+                let v = mesh.loop_vert(l);
+                ring.push(v);
+                sides.push(mesh.loop_edge(l));
+                points.push(mesh.position(v));
             }
-            let t = mesh.make_face_on_edges(&corners, &edges)?;
-            mesh.copy_face_attrs(f, t);
-            result.faces.push(t);
+            if ring.len() == 3 {
+                result.faces.push(f);
+                continue;
+            }
+            ring_triangles(&points, &mut triangles);
+            let n = ring.len() as u32;
+            diagonals.clear();
+            for tri in &triangles {
+                let corners = tri.map(|i| ring[i as usize]);
+                // Ring sides are the face's own edges. Each diagonal is shared
+                // by two triangles: the first looks it up (another face may
+                // have made it) or makes it, the second finds it in
+                // `diagonals` when the ring is small enough to scan.
+                let mut edges = [sides[0]; 3];
+                for k in 0..3 {
+                    // Corners are ascending, so the closing side runs high to
+                    // low: keys are (low, high).
+                    let (i, j) = (tri[k], tri[(k + 1) % 3]);
+                    let key = (i.min(j), i.max(j));
+                    edges[k] = if key.1 == key.0 + 1 {
+                        sides[key.0 as usize]
+                    } else if key == (0, n - 1) {
+                        sides[key.1 as usize]
+                    } else if let Some(&(_, e)) = diagonals.iter().find(|d| d.0 == key) {
+                        e
+                    } else {
+                        let (e, made) = mesh.find_or_make_edge(corners[k], corners[(k + 1) % 3])?;
+                        if made {
+                            result.edges.push(e);
+                        }
+                        if n <= SCANNED_RING {
+                            diagonals.push((key, e));
+                        }
+                        e
+                    };
+                }
+                let t = mesh.make_face_on_edges(&corners, &edges)?;
+                mesh.copy_face_attrs(f, t);
+                result.faces.push(t);
+            }
+            mesh.kill_face(f)?;
         }
-        mesh.kill_face(f)?;
-    }
+        Ok(())
+    };
+    let outcome = split_all();
+    mesh.refresh_normals_of(&split);
+    outcome?;
     result.normalize();
     Ok(result)
 }
