@@ -557,6 +557,45 @@ mod tests {
     }
 
     #[test]
+    fn quads_neither_diagonal_splits_well_take_the_general_path_among_others() {
+        // A bow-tie, a collinear quad (no normal: a fan), a pentagon and a
+        // plain quad in one call: the quads are decided in parallel before
+        // anything is split, the pentagon is rebuilt between them.
+        let mut m = Mesh::new();
+        let rings = [
+            vec![[0.0, 0.0], [2.0, 2.0], [2.0, 0.0], [0.0, 1.0]],
+            vec![[2.0, 0.0], [3.0, 0.0], [4.0, 0.0], [5.0, 0.0]],
+            vec![[6.0, 0.0], [7.0, 0.0], [7.5, 1.0], [6.5, 1.5], [5.8, 1.0]],
+            vec![[8.0, 0.0], [9.0, 0.0], [9.0, 1.0], [8.0, 1.0]],
+        ];
+        let faces: Vec<FaceId> = rings
+            .iter()
+            .map(|ring| {
+                let ring: Vec<VertId> = ring
+                    .iter()
+                    .map(|&[x, y]| m.make_vert(DVec3::new(x, y, 0.0)))
+                    .collect();
+                m.make_face(&ring).unwrap()
+            })
+            .collect();
+        let decide = |f: FaceId| {
+            let points: Vec<DVec3> = m.face_verts(f).map(|v| m.position(v)).collect();
+            let normal = polygon::unit_normal(&points);
+            polygon::quad_split_along_0_2(&points.try_into().unwrap(), normal)
+        };
+        assert_eq!(decide(faces[0]), None, "the bow-tie takes the general path");
+        assert_eq!(decide(faces[1]), Some(true), "the collinear quad is a fan");
+        let r = triangulate(&mut m, &faces).unwrap();
+        m.validate().unwrap();
+        assert_eq!(
+            (r.faces.len(), r.edges.len()),
+            (2 + 2 + 3 + 2, 1 + 1 + 2 + 1)
+        );
+        assert!(m.face_ids().all(|f| m.face_len(f) == 3));
+        assert!(consistently_wound(&m));
+    }
+
+    #[test]
     fn quads_split_in_place_as_a_rebuild_would_list_them() {
         // Convex quads and a dart whose reflex corner 1 forces the 1–3 cut,
         // with an attribute to carry.
