@@ -460,11 +460,11 @@ impl Mesh {
     /// construction), so writers need not compute flat normals again.
     pub fn to_indexed_with_normals(&self) -> IndexedMesh {
         let mut out = self.to_indexed();
-        out.polygon_normals = self
-            .faces
-            .iter()
-            .map(|(_, face)| face.normal.to_array())
-            .collect();
+        // Sized once: the arena's iterator cannot tell its length, and
+        // growing by doubling copies and faults up to twice the bytes.
+        out.polygon_normals = Vec::with_capacity(self.face_count());
+        out.polygon_normals
+            .extend(self.faces.iter().map(|(_, face)| face.normal.to_array()));
         out
     }
 
