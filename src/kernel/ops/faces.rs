@@ -596,6 +596,61 @@ mod tests {
     }
 
     #[test]
+    fn triangulate_is_the_same_at_any_thread_count() {
+        // Enough quads for the parallel decision and normal passes to
+        // split into several tasks, bumpy so the diagonals differ, with a
+        // hexagon now and then between them: every record, id and normal
+        // bit the same on one thread and on four.
+        let mut m = Mesh::new();
+        let n = 60;
+        let height = |i: usize, j: usize| ((i * 7 + j * 13) % 5) as f64 * 0.1;
+        let v: Vec<VertId> = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| (i, j)))
+            .map(|(i, j)| m.make_vert(DVec3::new(i as f64, j as f64, height(i, j))))
+            .collect();
+        let at = |i: usize, j: usize| v[j * (n + 1) + i];
+        let mut i = 0;
+        for j in 0..n {
+            while i < n {
+                if (i + j) % 17 == 0 && i + 2 <= n {
+                    let ring = [
+                        at(i, j),
+                        at(i + 1, j),
+                        at(i + 2, j),
+                        at(i + 2, j + 1),
+                        at(i + 1, j + 1),
+                        at(i, j + 1),
+                    ];
+                    m.make_face(&ring).unwrap();
+                    i += 2;
+                } else {
+                    m.make_face(&[at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)])
+                        .unwrap();
+                    i += 1;
+                }
+            }
+            i = 0;
+        }
+        let faces: Vec<FaceId> = m.face_ids().collect();
+        assert!(faces.len() > 3000);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut mesh = m.clone();
+            let r = pool.install(|| triangulate(&mut mesh, &faces)).unwrap();
+            mesh.validate().unwrap();
+            (format!("{mesh:?}"), r)
+        };
+        let (one, r1) = run(1);
+        let (four, r4) = run(4);
+        assert_eq!(r1, r4);
+        assert!(one == four, "triangulate depends on the thread count");
+        assert_eq!(r1.faces.len(), 2 * n * n, "two triangles per grid cell");
+    }
+
+    #[test]
     fn quads_split_in_place_as_a_rebuild_would_list_them() {
         // Convex quads and a dart whose reflex corner 1 forces the 1–3 cut,
         // with an attribute to carry.
