@@ -452,10 +452,8 @@ fn dropping_unexported_layers_leaves_the_export_unchanged() {
     assert!(dropped >= 2);
 }
 
-/// Stored face normals are fresh by construction, like every other kernel
-/// invariant: each example, validated (normals bit for bit) after every step.
-#[test]
-fn every_example_keeps_the_kernel_valid_after_every_step() {
+/// The example rule files in `rules/`, compiled, in name order.
+fn example_programs() -> Vec<(std::path::PathBuf, Program)> {
     use graftal::rules::compile::{compile, parse};
     use graftal::rules::diagnostic::SourceFile;
     use graftal::rules::spanned::SourceFormat;
@@ -466,18 +464,120 @@ fn every_example_keeps_the_kernel_valid_after_every_step() {
         .collect();
     paths.sort();
     assert!(paths.len() > 20, "the examples are in rules/");
-    for path in paths {
-        let format = match path.extension().and_then(|e| e.to_str()) {
-            Some("ron") => SourceFormat::Ron,
-            _ => SourceFormat::Toml,
-        };
-        let file = SourceFile {
-            name: path.display().to_string(),
-            text: std::fs::read_to_string(&path).unwrap(),
-        };
-        let ast = parse(&file, format).unwrap_or_else(|e| panic!("{}", e.headline()));
-        let program = compile(&file, &ast, &[], std::path::Path::new("rules"))
-            .unwrap_or_else(|e| panic!("{}", e.headline()));
+    paths
+        .into_iter()
+        .map(|path| {
+            let format = match path.extension().and_then(|e| e.to_str()) {
+                Some("ron") => SourceFormat::Ron,
+                _ => SourceFormat::Toml,
+            };
+            let file = SourceFile {
+                name: path.display().to_string(),
+                text: std::fs::read_to_string(&path).unwrap(),
+            };
+            let ast = parse(&file, format).unwrap_or_else(|e| panic!("{}", e.headline()));
+            let program = compile(&file, &ast, &[], std::path::Path::new("rules"))
+                .unwrap_or_else(|e| panic!("{}", e.headline()));
+            (path, program)
+        })
+        .collect()
+}
+
+/// Stored face normals are fresh by construction, like every other kernel
+/// invariant: each example, validated (normals bit for bit) after every step.
+#[test]
+fn every_example_keeps_the_kernel_valid_after_every_step() {
+    for (_, program) in example_programs() {
         run_validated(&program, RunOptions::default());
     }
+}
+
+/// A file written straight from the kernel mesh (issue 38: no indexed
+/// copy; glTF, GLB, PLY and STL) is the file the indexed export gives, byte
+/// for byte: every example the streaming path takes, and models chosen for what it must get right
+/// (closed and open shells deciding double-sidedness, a material that sets
+/// it, freed vertex slots to renumber, polygons beyond triangles).
+#[test]
+fn a_file_streamed_from_the_kernel_is_the_indexed_export_byte_for_byte() {
+    use graftal::io::gltf::encode_glb;
+    use graftal::io::MeshFormat;
+    let made = [
+        "[start]\ncube = { size = 2 }\n",
+        "[start]\ngrid = { segments = [7, 5] }\n[[step]]\ntriangulate = {}\n",
+        "[start]\ngrid = { segments = [4, 3], size = [2, 2] }\n[[step]]\ntranslate = { offset = [1, 0, 0] }\n[[step]]\nmirror = { axis = \"x\" }\n",
+        "[start]\ncircle = { segments = 7, fill = true }\n",
+        "material = \"m\"\n[materials.m]\nbase_color = \"#ff0000\"\ndouble_sided = false\n[start]\ngrid = { segments = [2, 2] }\n",
+        "[start]\nuv_sphere = { segments = 9, rings = 5 }\n[[step]]\nsubdivide = {}\n",
+    ];
+    let programs = example_programs()
+        .into_iter()
+        .map(|(path, p)| (path.display().to_string(), p))
+        .chain(made.iter().map(|text| (text.to_string(), toml(text))));
+    let (mut streamed, mut indexed_only, mut renumbered) = (0, 0, 0);
+    let mut sidedness = std::collections::BTreeSet::new();
+    for (name, program) in programs {
+        let mesh = run_validated(&program, RunOptions::default()).mesh;
+        let Some(look) = graftal::grammar::export_look(&program, &mesh) else {
+            indexed_only += 1;
+            continue;
+        };
+        streamed += 1;
+        renumbered += usize::from(mesh.vert_count() != mesh.vert_capacity());
+        sidedness.insert(look.materials[0].double_sided);
+        let full = graftal::grammar::export(&program, &mesh);
+        assert_eq!(look.parts, full.parts, "{name}");
+        assert_eq!(look.materials, full.materials, "{name}");
+        let view = mesh.canonical_view();
+        for format in [
+            MeshFormat::Glb,
+            MeshFormat::Gltf,
+            MeshFormat::PlyBinary,
+            MeshFormat::PlyAscii,
+            MeshFormat::StlBinary,
+            MeshFormat::StlAscii,
+        ] {
+            assert!(graftal::io::streams(format));
+            assert!(
+                graftal::io::encode_streamed(&view, &look, format).unwrap()
+                    == graftal::io::encode(&full, format).unwrap(),
+                "{name}: {format:?}"
+            );
+        }
+        // The two halves give the same bytes.
+        let planned = graftal::io::gltf::Planned::new(&view, &look, true).unwrap();
+        assert!(planned.encode().unwrap() == encode_glb(&full).unwrap());
+    }
+    // Both paths are taken, and each case the streaming path must get
+    // right occurs.
+    assert!(
+        streamed >= 8 && indexed_only >= 20,
+        "{streamed} streamed, {indexed_only} not"
+    );
+    assert!(renumbered >= 1, "a model with freed vertex slots");
+    assert_eq!(
+        sidedness.into_iter().collect::<Vec<_>>(),
+        [Some(false), Some(true)],
+        "closed and open shells"
+    );
+    // A model beyond f32's range fails with the same message either way.
+    let program = toml("[start]\ngrid = {}\n[[step]]\nscale = { factor = [1, 1e39, 1] }\n");
+    let mesh = run_validated(&program, RunOptions::default()).mesh;
+    let look = graftal::grammar::export_look(&program, &mesh).unwrap();
+    let full = graftal::grammar::export(&program, &mesh);
+    for format in [MeshFormat::Glb, MeshFormat::Gltf, MeshFormat::StlBinary] {
+        let streamed = graftal::io::encode_streamed(&mesh.canonical_view(), &look, format);
+        let indexed = graftal::io::encode(&full, format);
+        let (streamed, indexed) = (streamed.unwrap_err(), indexed.unwrap_err());
+        assert_eq!(streamed.to_string(), indexed.to_string());
+        assert!(
+            streamed.to_string().contains("vertex 0 coordinate -1e39"),
+            "{streamed}"
+        );
+    }
+    // Formats of f64 values write it.
+    assert!(
+        graftal::io::encode_streamed(&mesh.canonical_view(), &look, MeshFormat::PlyBinary).unwrap()
+            == graftal::io::encode(&full, MeshFormat::PlyBinary).unwrap()
+    );
+    assert!(!graftal::io::streams(MeshFormat::Obj));
 }

@@ -524,25 +524,6 @@ impl IndexedMesh {
         sorted.sort_by(|a, b| a.0.cmp(b.0));
         sorted
     }
-
-    /// Total number of triangles the polygons triangulate into.
-    pub(crate) fn triangle_count(&self) -> u64 {
-        self.polygons().map(|p| p.len() as u64 - 2).sum()
-    }
-
-    /// Fails if some position does not fit an `f32` (binary STL, glTF).
-    pub(crate) fn check_f32_range(&self, format: &'static str) -> Result<(), MeshError> {
-        for (vertex, p) in self.positions.iter().enumerate() {
-            if let Some(&value) = p.iter().find(|c| c.abs() > f32::MAX as f64) {
-                return Err(MeshError::OutOfRange {
-                    vertex,
-                    value,
-                    format,
-                });
-            }
-        }
-        Ok(())
-    }
 }
 
 /// A necessary condition for a closed, oriented surface, in one pass without
@@ -818,8 +799,13 @@ impl PolygonTriangulator {
     /// Loads `poly` (indices into `mesh.positions`) and triangulates it; returns the polygon's
     /// unit normal (`None` if degenerate).
     pub fn run(&mut self, mesh: &IndexedMesh, poly: &[u32]) -> Option<DVec3> {
+        self.run_with(poly, |i| mesh.position(i))
+    }
+
+    /// [`Self::run`] with the positions given by `position`.
+    pub fn run_with(&mut self, poly: &[u32], position: impl Fn(u32) -> DVec3) -> Option<DVec3> {
         self.points.clear();
-        self.points.extend(poly.iter().map(|&i| mesh.position(i)));
+        self.points.extend(poly.iter().map(|&i| position(i)));
         self.triangles.clear();
         polygon::triangulate_with_normal(&self.points, &mut self.triangles)
     }

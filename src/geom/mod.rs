@@ -15,7 +15,8 @@
 //!   conditions with it).
 //! - [`indexed`]: [`IndexedMesh`], the neutral polygon mesh every reader
 //!   makes and every writer takes, and [`sink`]: the [`MeshSink`] trait
-//!   every producer of geometry emits through.
+//!   every producer of geometry emits through; [`source`]: the
+//!   [`source::PolygonSource`] trait writers stream from instead.
 //! - [`material`]: PBR metallic-roughness materials and the sRGB
 //!   transfer functions; [`normals`]: shading normals split at creases;
 //!   [`uv`]: texture-coordinate projections; [`tubes`]: wire edges as
@@ -39,6 +40,7 @@ pub mod normals;
 pub mod polygon;
 pub mod predicates;
 pub mod sink;
+pub mod source;
 pub mod tubes;
 pub mod union_find;
 pub mod uv;

@@ -69,12 +69,7 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
         used[p as usize] = true;
     }
     let (kept, part_index) = renumber(&used);
-    let name_of = |p: usize| {
-        look.parts
-            .get(p)
-            .map_or_else(|| "model".to_owned(), |part| part.name.clone())
-    };
-    out.parts = kept.iter().map(|&p| name_of(p)).collect();
+    out.parts = kept.iter().map(|&p| part_name(program, p)).collect();
     line_parts
         .iter_mut()
         .for_each(|p| *p = part_index[*p as usize]);
@@ -83,20 +78,8 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
         return out;
     }
 
-    // Materials: the step's, else the part's, else the fallback.
     let fallback = look.materials.len();
-    let material_of = |own: i32, part: u32| {
-        usize::try_from(own)
-            .ok()
-            .filter(|&m| m < look.materials.len())
-            .or_else(|| {
-                look.parts
-                    .get(part as usize)
-                    .and_then(|part| part.material)
-                    .map(|m| m as usize)
-            })
-            .unwrap_or(fallback) as u32
-    };
+    let material_of = |own: i32, part: u32| material_index(program, own, part);
     let mut face_materials: Vec<u32> =
         match uniform_int(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL) {
             Some(own) => face_parts.iter().map(|&p| material_of(own, p)).collect(),
@@ -120,12 +103,7 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     let (kept_materials, material_index) = renumber(&used);
     out.materials = kept_materials
         .iter()
-        .map(|&m| {
-            look.materials
-                .get(m)
-                .cloned()
-                .unwrap_or_else(Material::fallback)
-        })
+        .map(|&m| material(program, m))
         .collect();
     face_materials
         .iter_mut()
@@ -173,6 +151,91 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     }
     out.decide_double_sided();
     out
+}
+
+/// What [`export`] would give with its geometry left out, when that is
+/// all a glTF writer needs besides the kernel mesh itself
+/// ([`crate::io::gltf::encode_streamed`] reads the polygons from
+/// [`Mesh::canonical_view`]): every face in one part and one material,
+/// flat-shaded (no crease angle), without texture coordinates, colours,
+/// wire edges or vertex scalars to write. `None` otherwise, or for a mesh
+/// without faces.
+pub fn export_look(program: &Program, mesh: &Mesh) -> Option<IndexedMesh> {
+    let look = &program.look;
+    let part = uniform_int(mesh, PART_LAYER, Domain::Face, 0)?;
+    let own = uniform_int(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL)?;
+    let part = part_index(program, part) as usize;
+    let plain = look
+        .parts
+        .get(part)
+        .is_none_or(|p| p.crease <= 0.0 && p.uv.is_none());
+    let scalars = mesh.attributes().layers().iter().any(|layer| {
+        layer.domain == Domain::Vert
+            && layer.kind() == LayerKind::Scalar
+            && layer.name != uv::SURFACE_U
+            && layer.name != uv::SURFACE_V
+    });
+    if !plain
+        || scalars
+        || mesh.face_count() == 0
+        || mesh.attributes().layer(COLOR_LAYER, Domain::Face).is_some()
+        || mesh.edge_ids().any(|e| mesh.is_wire_edge(e))
+    {
+        return None;
+    }
+    let mut out = IndexedMesh::new();
+    out.parts = vec![part_name(program, part)];
+    let mut material = material(program, material_index(program, own, part as u32) as usize);
+    // One material on every face: double-sided exactly where the faces
+    // leave a border (as `decide_double_sided` settles it).
+    if material.double_sided.is_none() {
+        material.double_sided = Some(!mesh.faces_on_closed_shells());
+    }
+    out.materials = vec![material];
+    Some(out)
+}
+
+/// A part layer value as an index into the program's parts (an unknown
+/// one is the first part).
+fn part_index(program: &Program, v: i32) -> u32 {
+    let parts = program.look.parts.len();
+    usize::try_from(v).ok().filter(|&p| p < parts).unwrap_or(0) as u32
+}
+
+/// The name of the program's part `p` (`model` for the implicit one).
+fn part_name(program: &Program, p: usize) -> String {
+    program
+        .look
+        .parts
+        .get(p)
+        .map_or_else(|| "model".to_owned(), |part| part.name.clone())
+}
+
+/// A face's material (an index into the program's materials, one past
+/// them for the fallback): the step's (`own`), else its part's, else the
+/// fallback.
+fn material_index(program: &Program, own: i32, part: u32) -> u32 {
+    let look = &program.look;
+    usize::try_from(own)
+        .ok()
+        .filter(|&m| m < look.materials.len())
+        .or_else(|| {
+            look.parts
+                .get(part as usize)
+                .and_then(|part| part.material)
+                .map(|m| m as usize)
+        })
+        .unwrap_or(look.materials.len()) as u32
+}
+
+/// The program's material `m`, or the fallback one past them.
+fn material(program: &Program, m: usize) -> Material {
+    program
+        .look
+        .materials
+        .get(m)
+        .cloned()
+        .unwrap_or_else(Material::fallback)
 }
 
 /// A part or material index as an integer layer value. Indices count the
@@ -236,8 +299,7 @@ fn uniform_int(mesh: &Mesh, name: &str, domain: Domain, default: i32) -> Option<
 /// The part (index into the program's parts) of every face and, with
 /// `lines`, of every wire edge, in the kernel's canonical export order.
 fn element_parts(program: &Program, mesh: &Mesh, lines: bool) -> (Vec<u32>, Vec<u32>) {
-    let parts = program.look.parts.len();
-    let part_of = |v: i32| usize::try_from(v).ok().filter(|&p| p < parts).unwrap_or(0) as u32;
+    let part_of = |v: i32| part_index(program, v);
     let faces = match uniform_int(mesh, PART_LAYER, Domain::Face, 0) {
         Some(v) => vec![part_of(v); mesh.face_count()],
         None => {

@@ -34,7 +34,7 @@ mod run;
 pub mod scope;
 mod surfaces;
 
-pub use asset::{drop_unexported_layers, export, part_counts, PartCount};
+pub use asset::{drop_unexported_layers, export, export_look, part_counts, PartCount};
 pub use error::{RunError, RunErrorKind, StepError};
 pub use fields::{FieldStats, Input, SkinCounts};
 pub use run::{

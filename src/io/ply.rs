@@ -22,6 +22,7 @@ use std::path::Path;
 use super::{push_f64, push_u64, IoError};
 use crate::geom::indexed::IndexedMesh;
 use crate::geom::material::{linear_to_srgb, sanitize_name, srgb_to_linear};
+use crate::geom::source::PolygonSource;
 
 /// Most parts a PLY file's `part` property may number (a part becomes a
 /// node or group in other formats).
@@ -37,18 +38,39 @@ pub enum Encoding {
 /// Encodes `mesh` as PLY.
 pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError> {
     mesh.validate()?;
-    let vertex_count = mesh.positions.len();
+    encode_look(mesh, mesh, encoding)
+}
+
+/// The bytes [`encode`] gives for `look` with the vertices and polygons of
+/// `source` in place of its own, written straight from `source` (a kernel
+/// mesh: no indexed copy). `look` gives the parts, lines, face colours
+/// and vertex scalars, numbered as `source` numbers its polygons and
+/// vertices (a look without per-polygon parts puts every face in part 0).
+pub fn encode_streamed<S: PolygonSource>(
+    source: &S,
+    look: &IndexedMesh,
+    encoding: Encoding,
+) -> Result<Vec<u8>, IoError> {
+    source.check_vertices()?;
+    encode_look(source, look, encoding)
+}
+
+fn encode_look<S: PolygonSource>(
+    source: &S,
+    mesh: &IndexedMesh,
+    encoding: Encoding,
+) -> Result<Vec<u8>, IoError> {
+    let vertex_count = source.vertex_count();
     if i32::try_from(vertex_count).is_err() {
         return Err(IoError::InvalidMesh {
             message: format!("{vertex_count} vertices exceed PLY's int index range"),
         });
     }
     let scalars = mesh.sorted_scalars();
-    let max_len = mesh.polygons().map(<[u32]>::len).max().unwrap_or(0);
-    let wide_counts = max_len > 255;
+    let wide_counts = source.max_polygon_len() > 255;
 
     let mut out = Vec::with_capacity(
-        256 + vertex_count * (24 + 8 * scalars.len()) + mesh.face_indices.len() * 5,
+        256 + vertex_count * (24 + 8 * scalars.len()) + source.corner_count() * 5,
     );
     out.extend_from_slice(b"ply\nformat ");
     out.extend_from_slice(match encoding {
@@ -74,7 +96,7 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
         out.push(b'\n');
     }
     out.extend_from_slice(b"element face ");
-    push_u64(&mut out, mesh.polygon_count() as u64);
+    push_u64(&mut out, source.polygon_count() as u64);
     out.extend_from_slice(if wide_counts {
         b"\nproperty list uint int vertex_indices\n"
     } else {
@@ -99,8 +121,9 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
 
     match encoding {
         Encoding::Ascii => {
-            for (v, p) in mesh.positions.iter().enumerate() {
-                let values = p.iter().copied().chain(scalars.iter().map(|(_, s)| s[v]));
+            for v in 0..vertex_count {
+                let p = source.position(v as u32).to_array();
+                let values = p.into_iter().chain(scalars.iter().map(|(_, s)| s[v]));
                 for (k, x) in values.enumerate() {
                     if k > 0 {
                         out.push(b' ');
@@ -109,7 +132,8 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                 }
                 out.push(b'\n');
             }
-            for (k, poly) in mesh.polygons().enumerate() {
+            let mut k = 0;
+            source.for_each_polygon(|poly, _| {
                 push_u64(&mut out, poly.len() as u64);
                 for &i in poly {
                     out.push(b' ');
@@ -124,7 +148,8 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                     push_u64(&mut out, u64::from(c));
                 }
                 out.push(b'\n');
-            }
+                k += 1;
+            });
             for (k, line) in mesh.lines.iter().enumerate() {
                 push_u64(&mut out, u64::from(line[0]));
                 out.push(b' ');
@@ -137,14 +162,16 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
             }
         }
         Encoding::BinaryLittleEndian => {
-            for (v, p) in mesh.positions.iter().enumerate() {
-                let values = p.iter().copied().chain(scalars.iter().map(|(_, s)| s[v]));
+            for v in 0..vertex_count {
+                let p = source.position(v as u32).to_array();
+                let values = p.into_iter().chain(scalars.iter().map(|(_, s)| s[v]));
                 for x in values {
                     let x = if x == 0.0 { 0.0 } else { x };
                     out.extend_from_slice(&x.to_le_bytes());
                 }
             }
-            for (k, poly) in mesh.polygons().enumerate() {
+            let mut k = 0;
+            source.for_each_polygon(|poly, _| {
                 if wide_counts {
                     out.extend_from_slice(&(poly.len() as u32).to_le_bytes());
                 } else {
@@ -160,7 +187,8 @@ pub fn encode(mesh: &IndexedMesh, encoding: Encoding) -> Result<Vec<u8>, IoError
                 if let Some(c) = colors.get(k) {
                     out.extend_from_slice(c);
                 }
-            }
+                k += 1;
+            });
             for (k, line) in mesh.lines.iter().enumerate() {
                 for &i in line {
                     out.extend_from_slice(&(i as i32).to_le_bytes());

@@ -23,25 +23,26 @@ use super::{parse_f64, push_f64, text_lines, IoError};
 use crate::geom::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
 use crate::geom::normals::unit_as_read;
 use crate::geom::polygon;
+use crate::geom::source::PolygonSource;
 
 const HEADER: &[u8; 18] = b"graftal binary STL";
 
 /// Calls `emit(normal, [a, b, c])` for every triangle of every polygon, in order.
-fn for_each_triangle(mesh: &IndexedMesh, mut emit: impl FnMut(DVec3, [DVec3; 3])) {
+fn for_each_triangle<S: PolygonSource>(mesh: &S, mut emit: impl FnMut(DVec3, [DVec3; 3])) {
     let mut tri = PolygonTriangulator::default();
-    for (k, poly) in mesh.polygons().enumerate() {
-        let poly_normal = tri.run(mesh, poly);
+    mesh.for_each_polygon(|poly, stored| {
+        let poly_normal = tri.run_with(poly, |v| mesh.position(v));
         if let [p0, p1, p2] = tri.points[..] {
             // A triangle's normal as read or as its producer stored it
             // (a file's facet normal comes back unchanged).
-            if let Some(Some(stored)) = mesh.stored_normal(k) {
+            if let Some(Some(stored)) = stored {
                 emit(stored, [p0, p1, p2]);
-                continue;
+                return;
             }
             // A triangle's own normal is the polygon's: the same points, and
             // `unit_normal_of` (which `run` uses) gives `unit_normal`'s bits.
             emit(poly_normal.unwrap_or(DVec3::ZERO), [p0, p1, p2]);
-            continue;
+            return;
         }
         for t in &tri.triangles {
             let corners = t.map(|i| tri.points[i as usize]);
@@ -50,12 +51,34 @@ fn for_each_triangle(mesh: &IndexedMesh, mut emit: impl FnMut(DVec3, [DVec3; 3])
                 .unwrap_or(DVec3::ZERO);
             emit(normal, corners);
         }
-    }
+    });
 }
 
 /// Encodes `mesh` as binary STL.
 pub fn encode_binary(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
     mesh.validate()?;
+    binary_of(mesh)
+}
+
+/// Encodes `mesh` as ASCII STL.
+pub fn encode_ascii(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
+    mesh.validate()?;
+    ascii_of(mesh)
+}
+
+/// The bytes [`encode_binary`] or [`encode_ascii`] gives for the polygons
+/// of `source`, written straight from it (a kernel mesh: no indexed copy;
+/// STL holds nothing else).
+pub fn encode_streamed<S: PolygonSource>(source: &S, ascii: bool) -> Result<Vec<u8>, IoError> {
+    source.check_vertices()?;
+    if ascii {
+        ascii_of(source)
+    } else {
+        binary_of(source)
+    }
+}
+
+fn binary_of<S: PolygonSource>(mesh: &S) -> Result<Vec<u8>, IoError> {
     mesh.check_f32_range("binary STL")?;
     let count = mesh.triangle_count();
     let count32 = u32::try_from(count).map_err(|_| IoError::InvalidMesh {
@@ -81,9 +104,7 @@ pub fn encode_binary(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
     Ok(out)
 }
 
-/// Encodes `mesh` as ASCII STL.
-pub fn encode_ascii(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    mesh.validate()?;
+fn ascii_of<S: PolygonSource>(mesh: &S) -> Result<Vec<u8>, IoError> {
     let mut out = Vec::with_capacity(32 + mesh.triangle_count() as usize * 200);
     out.extend_from_slice(b"solid graftal\n");
     let push_vec = |out: &mut Vec<u8>, v: DVec3| {

@@ -26,6 +26,7 @@ use super::mesh::Mesh;
 use super::ops::Selection;
 use crate::geom::indexed::welded_ring;
 use crate::geom::sink::{Begin, MeshSink, SinkError};
+use crate::geom::source::PolygonSource;
 use crate::geom::IndexedMesh;
 
 /// What was dropped while building kernel elements from emitted geometry.
@@ -474,6 +475,121 @@ impl Mesh {
         self.emit(&mut out)
             .expect("collecting a valid mesh into an indexed one cannot fail");
         out
+    }
+}
+
+impl Mesh {
+    /// The mesh as a [`PolygonSource`] in canonical order (what
+    /// [`Mesh::to_indexed_with_normals`] would hold), read in place: a
+    /// writer streams from it without the indexed copy.
+    pub fn canonical_view(&self) -> CanonicalView<'_> {
+        // Compact (no freed vertex slot, the usual case): a vertex's index
+        // is its slot, and no map is needed either way.
+        let (slot_of, index_of) = if self.vert_count() == self.vert_capacity() {
+            (Vec::new(), Vec::new())
+        } else {
+            let mut index_of = vec![u32::MAX; self.vert_capacity()];
+            let slot_of: Vec<u32> = self.vert_ids().map(VertId::raw).collect();
+            for (i, &slot) in slot_of.iter().enumerate() {
+                index_of[slot as usize] = i as u32;
+            }
+            (slot_of, index_of)
+        };
+        CanonicalView {
+            mesh: self,
+            slot_of,
+            index_of,
+        }
+    }
+}
+
+impl Mesh {
+    /// Whether every pair of vertices the faces join is walked as often one
+    /// way as the other: the faces make closed, consistently oriented
+    /// shells. The answer [`IndexedMesh::double_sided_decided`] reaches for
+    /// one material on every face of the canonical view, read from the
+    /// edges' radial cycles instead; parallel edges between the same two
+    /// vertices count together, as the indexed view's vertex pairs do.
+    pub fn faces_on_closed_shells(&self) -> bool {
+        // Uses of `e` from its first vertex, minus uses from its second.
+        let balance = |e: EdgeId| {
+            let [a, _] = self.edge_verts(e);
+            self.edge_loops(e)
+                .map(|l| if self.loop_vert(l) == a { 1i64 } else { -1 })
+                .sum::<i64>()
+        };
+        self.edge_ids().all(|e| {
+            balance(e) == 0 || {
+                let [a, b] = self.edge_verts(e);
+                let pair: i64 = self
+                    .vert_edges(a)
+                    .filter(|&p| self.edge_other_vert(p, a) == b)
+                    .map(|p| {
+                        let sign = if self.edge_verts(p)[0] == a { 1 } else { -1 };
+                        sign * balance(p)
+                    })
+                    .sum();
+                pair == 0
+            }
+        })
+    }
+}
+
+/// A kernel mesh read as a [`PolygonSource`]: vertices in id order,
+/// compacted; faces in id order, each from its first loop, with its stored
+/// normal (fresh by construction, checked by the validator).
+pub struct CanonicalView<'m> {
+    mesh: &'m Mesh,
+    /// Vertex index → slot; empty when the slots are compact.
+    slot_of: Vec<u32>,
+    /// Slot → vertex index; empty when the slots are compact.
+    index_of: Vec<u32>,
+}
+
+impl PolygonSource for CanonicalView<'_> {
+    fn vertex_count(&self) -> usize {
+        self.mesh.vert_count()
+    }
+
+    fn polygon_count(&self) -> usize {
+        self.mesh.face_count()
+    }
+
+    fn corner_count(&self) -> usize {
+        self.mesh.loop_count()
+    }
+
+    fn position(&self, v: u32) -> DVec3 {
+        let slot = self.slot_of.get(v as usize).copied().unwrap_or(v);
+        self.mesh.position(VertId::from_raw(slot))
+    }
+
+    fn max_polygon_len(&self) -> usize {
+        self.mesh
+            .faces
+            .iter()
+            .map(|(_, face)| face.len as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
+    fn stores_normals(&self) -> bool {
+        true
+    }
+
+    fn for_each_polygon(&self, mut visit: impl FnMut(&[u32], Option<Option<DVec3>>)) {
+        let mut corners: Vec<u32> = Vec::new();
+        for (f, face) in self.mesh.faces.iter() {
+            corners.clear();
+            let verts = self.mesh.face_verts(FaceId::from_raw(f)).map(VertId::raw);
+            if self.index_of.is_empty() {
+                corners.extend(verts);
+            } else {
+                corners.extend(verts.map(|slot| self.index_of[slot as usize]));
+            }
+            let n = face.normal;
+            visit(&corners, Some((n != DVec3::ZERO).then_some(n)));
+        }
     }
 }
 

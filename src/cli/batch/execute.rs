@@ -21,6 +21,7 @@ use crate::cli::manifest::{Counts, ErrorEntry, FileEntry, Status, VariantEntry};
 use crate::cli::stats::{self, steps_json, StepJson};
 use crate::cli::{manifest, EXIT_RUNTIME};
 use crate::grammar::{self, RunErrorKind, RunOptions};
+use crate::io::MeshFormat;
 
 /// How a variant's files came to be.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -505,33 +506,78 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
         // encoding, not their sum.
         grammar::drop_unexported_layers(&mut result.mesh);
     }
-    let indexed = grammar::export(program, &result.mesh);
     let counts = Counts {
         vertices: result.mesh.vert_count(),
         edges: result.mesh.edge_count(),
         faces: result.mesh.face_count(),
     };
-    if !want_stats {
-        result.mesh = crate::kernel::Mesh::default();
-    }
-    let thumbnail = match thumbnail_size(plan) {
-        Some(size) => {
-            let options = crate::preview::Options {
-                width: size,
-                height: size,
-                edges: true,
-                ..crate::preview::Options::default()
+    // A plain model (one part and material, flat, nothing per corner) is
+    // written straight from the kernel mesh, with no indexed copy (issue
+    // 38), unless a thumbnail needs the copy too or the file turns Y-up.
+    let thumbnail_size = thumbnail_size(plan);
+    let format = v.format;
+    let gltf = matches!(format, MeshFormat::Glb | MeshFormat::Gltf);
+    let streamed = (thumbnail_size.is_none()
+        && crate::io::streams(format)
+        && (gltf || args.write.up == crate::cli::Up::Z))
+        .then(|| grammar::export_look(program, &result.mesh))
+        .flatten();
+    let (encoded, thumbnail) = match streamed {
+        Some(look) => {
+            let failed = |e: crate::io::IoError| {
+                fail(
+                    "failed",
+                    EXIT_RUNTIME,
+                    format!("{}: {e}", v.output.display()),
+                )
             };
-            Some(
-                crate::cli::preview::render(&indexed, &options)
-                    .map_err(|m| fail("failed", EXIT_RUNTIME, format!("thumbnail: {m}")))?,
-            )
+            let view = result.mesh.canonical_view();
+            let bytes = if gltf {
+                let glb = format == MeshFormat::Glb;
+                let planned = crate::io::gltf::Planned::new(&view, &look, glb).map_err(failed)?;
+                // The primitives hold all the file needs: the mesh goes
+                // before the file is allocated.
+                drop(view);
+                if !want_stats {
+                    result.mesh = crate::kernel::Mesh::default();
+                }
+                planned.encode()
+            } else {
+                crate::io::encode_streamed(&view, &look, format)
+            }
+            .map_err(failed)?;
+            let encoded = crate::cli::Encoded {
+                bytes,
+                companions: Vec::new(),
+                dropped_wire_edges: 0,
+            };
+            (encoded, None)
         }
-        None => None,
+        None => {
+            let indexed = grammar::export(program, &result.mesh);
+            if !want_stats {
+                result.mesh = crate::kernel::Mesh::default();
+            }
+            let thumbnail = match thumbnail_size {
+                Some(size) => {
+                    let options = crate::preview::Options {
+                        width: size,
+                        height: size,
+                        edges: true,
+                        ..crate::preview::Options::default()
+                    };
+                    Some(
+                        crate::cli::preview::render(&indexed, &options)
+                            .map_err(|m| fail("failed", EXIT_RUNTIME, format!("thumbnail: {m}")))?,
+                    )
+                }
+                None => None,
+            };
+            let encoded = crate::cli::encode_for(&indexed, v.format, &args.write, &v.output)
+                .map_err(|m| fail("failed", EXIT_RUNTIME, m))?;
+            (encoded, thumbnail)
+        }
     };
-    let encoded = crate::cli::encode_for(&indexed, v.format, &args.write, &v.output)
-        .map_err(|m| fail("failed", EXIT_RUNTIME, m))?;
-    drop(indexed);
     let stats = want_stats.then(|| {
         let (report, gates) = stats::report_and_gates(&result.mesh, stats::CLOSE_TOLERANCE);
         let doc = stats::run_stats_doc(

@@ -57,6 +57,7 @@ use glam::DVec3;
 
 use super::IoError;
 use crate::geom::indexed::{IndexedMesh, PolygonTriangulator, VertexMerger};
+use crate::geom::source::PolygonSource;
 
 mod base64;
 mod draco_primitives;
@@ -78,4 +79,4 @@ use reader::*;
 pub use reader::{decode, decode_with};
 #[cfg(test)]
 use writer::*;
-pub use writer::{encode_glb, encode_gltf};
+pub use writer::{encode_glb, encode_gltf, encode_streamed, Planned};

@@ -9,7 +9,10 @@ pub(crate) const DATA_URI_PREFIX: &str = "data:application/octet-stream;base64,"
 
 /// Encodes `mesh` as a `.gltf` JSON document with an embedded base64 buffer.
 pub fn encode_gltf(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    let doc = Document::new(mesh, true)?;
+    gltf_container(Document::new(mesh, true)?)
+}
+
+fn gltf_container(doc: Document) -> Result<Vec<u8>, IoError> {
     if doc.bin_len == 0 {
         return Ok(doc.json);
     }
@@ -24,7 +27,79 @@ pub fn encode_gltf(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
 /// is made from the buffer's layout first, so the buffer is written once,
 /// in place, into an output allocated at its final size.
 pub fn encode_glb(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    let doc = Document::new(mesh, false)?;
+    glb_container(Document::new(mesh, false)?)
+}
+
+/// The bytes [`encode_glb`] (`glb`) or [`encode_gltf`] would give for
+/// `look` with the polygons of `source` in place of its own: written
+/// straight from `source` (a kernel mesh), with no indexed copy of it.
+/// [`Planned`] does the same in two halves.
+pub fn encode_streamed<S: PolygonSource>(
+    source: &S,
+    look: &IndexedMesh,
+    glb: bool,
+) -> Result<Vec<u8>, IoError> {
+    Planned::new(source, look, glb)?.encode()
+}
+
+/// A glTF planned from a [`PolygonSource`]: its JSON and primitives, which
+/// hold everything the file needs, so the source may be dropped before
+/// [`Planned::encode`] allocates the file (peak memory is the larger of
+/// source + primitives and primitives + file, not their sum).
+pub struct Planned<'l> {
+    doc: Document<'l>,
+    glb: bool,
+}
+
+impl<'l> Planned<'l> {
+    /// Plans the file for `look` with the polygons of `source`.
+    ///
+    /// `look` carries what a file adds to the geometry and holds none
+    /// itself: at most one part, at most one material with its
+    /// double-sidedness decided (the caller knows the shells), and no
+    /// polygons, lines, vertex scalars or corner values. A mesh that needs
+    /// more goes through [`encode_glb`]. Checks what
+    /// [`IndexedMesh::validate`] and the `f32` range check would, in the
+    /// same order, with the same messages.
+    pub fn new<S: PolygonSource>(
+        source: &S,
+        look: &'l IndexedMesh,
+        glb: bool,
+    ) -> Result<Self, IoError> {
+        debug_assert!(
+            look.positions.is_empty()
+                && look.polygon_count() == 0
+                && look.lines.is_empty()
+                && look.vertex_scalars.is_empty()
+                && look.parts.len() <= 1
+                && look.materials.len() <= 1
+                && look.materials.iter().all(|m| m.double_sided.is_some()),
+            "a streamed look holds no geometry, one part and decided materials"
+        );
+        source.check_vertices()?;
+        source.check_f32_range("glTF")?;
+        let count = source.vertex_count();
+        let mut draws = Vec::new();
+        if source.polygon_count() > 0 {
+            let material = (!look.materials.is_empty()).then_some(0);
+            let mut sharing = Sharing::new(count);
+            draws.push(plan_flat_surface(source, material, &mut sharing)?);
+        }
+        let doc = Document::lay_out(look, Vec::new(), vec![draws], !glb)?;
+        Ok(Planned { doc, glb })
+    }
+
+    /// The file's bytes.
+    pub fn encode(self) -> Result<Vec<u8>, IoError> {
+        if self.glb {
+            glb_container(self.doc)
+        } else {
+            gltf_container(self.doc)
+        }
+    }
+}
+
+fn glb_container(doc: Document) -> Result<Vec<u8>, IoError> {
     let json_len = doc.json.len().next_multiple_of(4);
     let bin_chunk = if doc.bin_len == 0 { 0 } else { 8 + doc.bin_len };
     let total = 12 + 8 + json_len + bin_chunk;
@@ -171,8 +246,9 @@ pub(super) struct Sharing {
 /// What a surface corner's vertex carries besides its position.
 struct Shading {
     normal: [f32; 3],
-    uv: [f32; 2],
-    color: [f32; 3],
+    /// Where the mesh has texture coordinates or colours.
+    uv: Option<[f32; 2]>,
+    color: Option<[f32; 3]>,
 }
 
 impl Sharing {
@@ -186,38 +262,39 @@ impl Sharing {
 
     /// The index of the surface vertex (`source`, `s`) in `draw`, added when
     /// no equal one exists (compared as `f32` values, as written).
-    fn surface(&mut self, draw: &mut Draw, mesh: &IndexedMesh, source: u32, s: &Shading) -> u32 {
-        let (uv, color) = (!mesh.corner_uvs.is_empty(), !mesh.corner_colors.is_empty());
+    fn surface(
+        &mut self,
+        draw: &mut Draw,
+        source: u32,
+        position: impl FnOnce() -> DVec3,
+        s: &Shading,
+    ) -> u32 {
         let mut at = self.head[source as usize];
         while at != NONE {
             let i = at as usize;
             if draw.normals[i] == s.normal
-                && (!uv || draw.uvs[i] == s.uv)
-                && (!color || draw.colors[i] == s.color)
+                && s.uv.is_none_or(|uv| draw.uvs[i] == uv)
+                && s.color.is_none_or(|color| draw.colors[i] == color)
             {
                 return at;
             }
             at = self.next[i];
         }
         draw.normals.push(s.normal);
-        if uv {
-            draw.uvs.push(s.uv);
-        }
-        if color {
-            draw.colors.push(s.color);
-        }
-        self.add(draw, mesh, source)
+        draw.uvs.extend(s.uv);
+        draw.colors.extend(s.color);
+        self.add(draw, source, position())
     }
 
     /// The index of a wire vertex: one per source vertex.
     fn wire(&mut self, draw: &mut Draw, mesh: &IndexedMesh, source: u32) -> u32 {
         match self.head[source as usize] {
-            NONE => self.add(draw, mesh, source),
+            NONE => self.add(draw, source, mesh.position(source)),
             at => at,
         }
     }
 
-    fn add(&mut self, draw: &mut Draw, mesh: &IndexedMesh, source: u32) -> u32 {
+    fn add(&mut self, draw: &mut Draw, source: u32, position: DVec3) -> u32 {
         let slot = source as usize;
         let index = draw.sources.len() as u32;
         if self.head[slot] == NONE {
@@ -226,7 +303,7 @@ impl Sharing {
         self.next.push(self.head[slot]);
         self.head[slot] = index;
         draw.sources.push(source);
-        let p = to_f32(turn_y_up(mesh.positions[slot]));
+        let p = to_f32(turn_y_up(position.to_array()));
         draw.bounds.add(p);
         draw.positions.push(p);
         index
@@ -305,10 +382,14 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                     .map(|i| mesh.polygon(polygon_at(i)).len())
                     .sum()
             };
-            let mut draw = Draw::new(
-                Mode::Triangles,
-                (!mesh.materials.is_empty()).then_some(material as u32),
-            );
+            let material_index = (!mesh.materials.is_empty()).then_some(material as u32);
+            // Every polygon in order, flat-shaded from stored normals: the
+            // streaming planner, the one a kernel mesh is written with.
+            if order.is_empty() && !smooth && !has_uv && !has_color && mesh.stores_normals() {
+                draws.push(plan_flat_surface(mesh, material_index, &mut sharing)?);
+                continue;
+            }
+            let mut draw = Draw::new(Mode::Triangles, material_index);
             draw.sources.reserve(corners);
             draw.positions.reserve(corners);
             draw.normals.reserve(corners);
@@ -363,10 +444,6 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                     } else {
                         unit_f32(tri.run(mesh, poly).unwrap_or(DVec3::Z))
                     };
-                    // Vertices are numbered in the order the triangles first
-                    // use them, not in corner order: the triangles read back
-                    // from this file then number them the same way, and
-                    // converting it again changes no byte.
                     let vertex_of = |draw: &mut Draw, sharing: &mut Sharing, j: usize| {
                         let c = first + j;
                         let normal = match mesh.corner_normals.get(c) {
@@ -379,38 +456,19 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
                                 .corner_uvs
                                 .get(c)
                                 // glTF's v runs down the image (§3.7.2.1).
-                                .map_or([0.0; 2], |t| [t[0] as f32, (1.0 - t[1]) as f32]),
-                            color: mesh
-                                .corner_colors
-                                .get(c)
-                                .map_or([0.0; 3], |c| c.map(|x| x as f32)),
+                                .map(|t| [t[0] as f32, (1.0 - t[1]) as f32]),
+                            color: mesh.corner_colors.get(c).map(|c| c.map(|x| x as f32)),
                         };
-                        sharing.surface(draw, mesh, poly[j], &shading)
+                        let v = poly[j];
+                        sharing.surface(draw, v, || mesh.position(v), &shading)
                     };
-                    if triangle {
-                        for j in 0..3 {
-                            let index = vertex_of(&mut draw, &mut sharing, j);
-                            draw.indices.push(index);
-                        }
-                    } else {
-                        local.clear();
-                        local.resize(poly.len(), u32::MAX);
-                        for &j in tri.triangles.iter().flatten() {
-                            let j = j as usize;
-                            if local[j] == u32::MAX {
-                                local[j] = vertex_of(&mut draw, &mut sharing, j);
-                            }
-                            draw.indices.push(local[j]);
-                        }
-                    }
+                    push_triangles(&mut draw, poly.len(), &tri.triangles, &mut local, |d, j| {
+                        vertex_of(d, &mut sharing, j)
+                    });
                 }
             }
             sharing.clear();
-            if u32::try_from(draw.vertex_count()).is_err() {
-                return Err(IoError::InvalidMesh {
-                    message: "a primitive's vertices exceed glTF's u32 index range".into(),
-                });
-            }
+            check_index_range(&draw)?;
             draws.push(draw);
         }
         let mut wire = Draw::new(Mode::Lines, None);
@@ -430,6 +488,94 @@ pub(super) fn plan_draws(mesh: &IndexedMesh) -> Result<Vec<Vec<Draw>>, IoError> 
         out.push(draws);
     }
     Ok(out)
+}
+
+/// Appends one polygon's triangles to `draw`: a triangle's corners in
+/// order, a larger polygon's as `triangles` (local corner indices) split
+/// it. `vertex_of(draw, j)` gives corner `j`'s vertex, asked once per
+/// corner, in the order the triangles first use them: the triangles read
+/// back from the file then number the vertices the same way, and
+/// converting it again changes no byte.
+fn push_triangles(
+    draw: &mut Draw,
+    corners: usize,
+    triangles: &[[u32; 3]],
+    local: &mut Vec<u32>,
+    mut vertex_of: impl FnMut(&mut Draw, usize) -> u32,
+) {
+    if corners == 3 {
+        for j in 0..3 {
+            let index = vertex_of(draw, j);
+            draw.indices.push(index);
+        }
+        return;
+    }
+    local.clear();
+    local.resize(corners, u32::MAX);
+    for &j in triangles.iter().flatten() {
+        let j = j as usize;
+        if local[j] == u32::MAX {
+            local[j] = vertex_of(draw, j);
+        }
+        draw.indices.push(local[j]);
+    }
+}
+
+fn check_index_range(draw: &Draw) -> Result<(), IoError> {
+    match u32::try_from(draw.vertex_count()) {
+        Ok(_) => Ok(()),
+        Err(_) => Err(IoError::InvalidMesh {
+            message: "a primitive's vertices exceed glTF's u32 index range".into(),
+        }),
+    }
+}
+
+/// One primitive of every polygon of `source`, in order, flat-shaded:
+/// what [`plan_draws`] plans for a mesh of one part and one material with
+/// neither corner normals, texture coordinates nor colours, read from any
+/// [`PolygonSource`] (the kernel's mesh, without an indexed copy).
+fn plan_flat_surface<S: PolygonSource>(
+    source: &S,
+    material: Option<u32>,
+    sharing: &mut Sharing,
+) -> Result<Draw, IoError> {
+    let (corners, polygons) = (source.corner_count(), source.polygon_count());
+    let mut draw = Draw::new(json::mesh::Mode::Triangles, material);
+    // At most one vertex per corner, and three indices per corner beyond
+    // the second of each polygon: reserved once.
+    draw.sources.reserve(corners);
+    draw.positions.reserve(corners);
+    draw.normals.reserve(corners);
+    draw.indices.reserve(3 * (corners - 2 * polygons));
+    sharing.next.reserve(corners);
+    let mut tri = PolygonTriangulator::default();
+    let mut local: Vec<u32> = Vec::new();
+    source.for_each_polygon(|poly, stored| {
+        let position = |v: u32| source.position(v);
+        let flat = match (poly, stored) {
+            // The producer's stored normal is these bits already.
+            ([_, _, _], Some(stored)) => unit_f32(stored.unwrap_or(DVec3::Z)),
+            // A triangle's normal is the one `PolygonTriangulator::run`
+            // gives it (the same function).
+            (&[a, b, c], None) => {
+                let corners = [position(a), position(b), position(c)];
+                unit_f32(polygon::unit_normal_of(&corners).unwrap_or(DVec3::Z))
+            }
+            _ => unit_f32(tri.run_with(poly, position).unwrap_or(DVec3::Z)),
+        };
+        let shading = Shading {
+            normal: turn_normal(flat),
+            uv: None,
+            color: None,
+        };
+        push_triangles(&mut draw, poly.len(), &tri.triangles, &mut local, |d, j| {
+            let v = poly[j];
+            sharing.surface(d, v, || position(v), &shading)
+        });
+    });
+    sharing.clear();
+    check_index_range(&draw)?;
+    Ok(draw)
 }
 
 /// Appends `values` little-endian: one copy on a little-endian machine.
@@ -605,6 +751,17 @@ impl<'m> Document<'m> {
             }
         }
         let planned = plan_draws(mesh)?;
+        Self::lay_out(mesh, scalars, planned, embed)
+    }
+
+    /// The JSON for the primitives `planned` (per part, in part order) of
+    /// `mesh`, whose materials, part names and corner arrays it names.
+    fn lay_out(
+        mesh: &'m IndexedMesh,
+        scalars: Vec<(&'m str, &'m [f64])>,
+        planned: Vec<Vec<Draw>>,
+        embed: bool,
+    ) -> Result<Self, IoError> {
         let mut b = Builder {
             root: json::Root {
                 asset: json::Asset {
