@@ -345,20 +345,9 @@ pub(crate) fn encode_for(
     } else {
         mesh
     };
-    // An OBJ's materials go in a `.mtl` of the same stem beside it
-    // (not for standard output, which has no beside).
-    let library = (format == io::MeshFormat::Obj && path.as_os_str() != "-")
-        .then(|| io::obj::encode_mtl(mesh))
-        .flatten()
-        .map(|bytes| (path.with_extension("mtl"), bytes));
+    let library = obj_library(mesh, format, path);
     let bytes = match &library {
-        Some((mtl, _)) => {
-            let name = mtl
-                .file_name()
-                .and_then(|n| n.to_str())
-                .unwrap_or("materials.mtl");
-            io::obj::encode_with_library(mesh, Some(name))
-        }
+        Some((mtl, _)) => io::obj::encode_with_library(mesh, Some(library_name(mtl))),
         None => io::encode(mesh, format),
     }
     .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -366,6 +355,50 @@ pub(crate) fn encode_for(
         bytes,
         companions: library.into_iter().collect(),
         dropped_wire_edges,
+    })
+}
+
+/// An OBJ's material library: its materials go in a `.mtl` of the same
+/// stem beside it (not for standard output, which has no beside).
+fn obj_library(
+    mesh: &io::IndexedMesh,
+    format: io::MeshFormat,
+    path: &Path,
+) -> Option<(PathBuf, Vec<u8>)> {
+    (format == io::MeshFormat::Obj && path.as_os_str() != "-")
+        .then(|| io::obj::encode_mtl(mesh))
+        .flatten()
+        .map(|bytes| (path.with_extension("mtl"), bytes))
+}
+
+/// The name an OBJ's `mtllib` line gives its library.
+fn library_name(mtl: &Path) -> &str {
+    mtl.file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("materials.mtl")
+}
+
+/// [`encode_for`] of a plain model ([`crate::grammar::export_look`]) in a
+/// format other than glTF, written straight from the kernel mesh `source`
+/// (issue 38): the same bytes and companions, without the indexed copy.
+/// (The batch runner writes glTF in two halves itself, dropping the mesh
+/// between them: [`io::gltf::Planned`].)
+pub(crate) fn encode_streamed_for(
+    source: &impl crate::geom::source::PolygonSource,
+    look: &io::IndexedMesh,
+    format: io::MeshFormat,
+    path: &Path,
+) -> Result<Encoded, String> {
+    let library = obj_library(look, format, path);
+    let bytes = match &library {
+        Some((mtl, _)) => io::obj::encode_streamed(source, look, Some(library_name(mtl))),
+        None => io::encode_streamed(source, look, format),
+    }
+    .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(Encoded {
+        bytes,
+        companions: library.into_iter().collect(),
+        dropped_wire_edges: 0,
     })
 }
 

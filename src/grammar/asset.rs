@@ -79,7 +79,7 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
     }
 
     let fallback = look.materials.len();
-    let material_of = |own: i32, part: u32| material_index(program, own, part);
+    let material_of = |own: i32, part: u32| face_material(program, own, part);
     let mut face_materials: Vec<u32> =
         match uniform_int(mesh, MATERIAL_LAYER, Domain::Face, NO_MATERIAL) {
             Some(own) => face_parts.iter().map(|&p| material_of(own, p)).collect(),
@@ -154,8 +154,8 @@ pub fn export(program: &Program, mesh: &Mesh) -> IndexedMesh {
 }
 
 /// What [`export`] would give with its geometry left out, when that is
-/// all a glTF writer needs besides the kernel mesh itself
-/// ([`crate::io::gltf::encode_streamed`] reads the polygons from
+/// all a writer needs besides the kernel mesh itself
+/// ([`crate::io::encode_streamed`] reads the polygons from
 /// [`Mesh::canonical_view`]): every face in one part and one material,
 /// flat-shaded (no crease angle), without texture coordinates, colours,
 /// wire edges or vertex scalars to write. `None` otherwise, or for a mesh
@@ -185,7 +185,7 @@ pub fn export_look(program: &Program, mesh: &Mesh) -> Option<IndexedMesh> {
     }
     let mut out = IndexedMesh::new();
     out.parts = vec![part_name(program, part)];
-    let mut material = material(program, material_index(program, own, part as u32) as usize);
+    let mut material = material(program, face_material(program, own, part as u32) as usize);
     // One material on every face: double-sided exactly where the faces
     // leave a border (as `decide_double_sided` settles it).
     if material.double_sided.is_none() {
@@ -214,7 +214,7 @@ fn part_name(program: &Program, p: usize) -> String {
 /// A face's material (an index into the program's materials, one past
 /// them for the fallback): the step's (`own`), else its part's, else the
 /// fallback.
-fn material_index(program: &Program, own: i32, part: u32) -> u32 {
+fn face_material(program: &Program, own: i32, part: u32) -> u32 {
     let look = &program.look;
     usize::try_from(own)
         .ok()

@@ -192,26 +192,17 @@ impl MeshFormat {
     }
 }
 
-/// Whether [`encode_streamed`] writes `format` (every format but OBJ, whose
-/// text formatting costs far more than the indexed copy it would save).
-pub fn streams(format: MeshFormat) -> bool {
-    format != MeshFormat::Obj
-}
-
 /// The bytes [`encode`] gives for `look` with the vertices and polygons of
 /// `source` in place of its own, written straight from `source` (the
 /// kernel's mesh, without an indexed copy; issue 38). `look` holds what
 /// the file adds to the geometry, as [`gltf::Planned::new`] describes.
-/// For a format that does not [`streams`], an error.
 pub fn encode_streamed<S: PolygonSource>(
     source: &S,
     look: &IndexedMesh,
     format: MeshFormat,
 ) -> Result<Vec<u8>, IoError> {
     match format {
-        MeshFormat::Obj => Err(IoError::InvalidMesh {
-            message: "OBJ is written from an indexed mesh".into(),
-        }),
+        MeshFormat::Obj => obj::encode_streamed(source, look, None),
         MeshFormat::StlAscii => stl::encode_streamed(source, true),
         MeshFormat::StlBinary => stl::encode_streamed(source, false),
         MeshFormat::PlyAscii => ply::encode_streamed(source, look, ply::Encoding::Ascii),

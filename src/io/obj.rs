@@ -24,6 +24,7 @@ use super::{parse_f64, push_f64, push_u64, text_lines, IoError};
 use crate::geom::indexed::IndexedMesh;
 use crate::geom::material::sanitize_name;
 use crate::geom::normals::unit_as_read;
+use crate::geom::source::PolygonSource;
 
 /// Encodes `mesh` as OBJ text (no material library named).
 pub fn encode(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
@@ -38,21 +39,7 @@ pub fn encode(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
 /// material after `usemtl NAME`, and its wire edges (`l`).
 pub fn encode_with_library(mesh: &IndexedMesh, library: Option<&str>) -> Result<Vec<u8>, IoError> {
     mesh.validate()?;
-    let mut out = Vec::with_capacity(16 + mesh.positions.len() * 40 + mesh.face_indices.len() * 8);
-    out.extend_from_slice(b"# graftal\n");
-    if let Some(name) = library.filter(|_| !mesh.materials.is_empty()) {
-        out.extend_from_slice(b"mtllib ");
-        out.extend_from_slice(name.as_bytes());
-        out.push(b'\n');
-    }
-    for p in &mesh.positions {
-        out.push(b'v');
-        for &c in p {
-            out.push(b' ');
-            push_f64(&mut out, c);
-        }
-        out.push(b'\n');
-    }
+    let mut out = start(mesh, mesh, library);
     // Texture coordinates and normals, each distinct value written once.
     let uv_index = shared_values(&mesh.corner_uvs, b"vt", &mut out);
     let normal_index = shared_values(&mesh.corner_normals, b"vn", &mut out);
@@ -79,24 +66,10 @@ pub fn encode_with_library(mesh: &IndexedMesh, library: Option<&str>) -> Result<
             }
             for &k in polygons {
                 let first = mesh.face_starts[k as usize] as usize;
-                out.push(b'f');
-                for (i, &v) in mesh.polygon(k as usize).iter().enumerate() {
-                    out.push(b' ');
-                    push_u64(&mut out, u64::from(v) + 1);
-                    let uv = uv_index.get(first + i);
-                    let normal = normal_index.get(first + i);
-                    if uv.is_some() || normal.is_some() {
-                        out.push(b'/');
-                        if let Some(&t) = uv {
-                            push_u64(&mut out, u64::from(t) + 1);
-                        }
-                        if let Some(&n) = normal {
-                            out.push(b'/');
-                            push_u64(&mut out, u64::from(n) + 1);
-                        }
-                    }
-                }
-                out.push(b'\n');
+                let corners = first..first + mesh.polygon(k as usize).len();
+                let uvs = uv_index.get(corners.clone()).unwrap_or_default();
+                let normals = normal_index.get(corners).unwrap_or_default();
+                push_face(&mut out, mesh.polygon(k as usize), uvs, normals);
             }
         }
         for (k, line) in mesh.lines.iter().enumerate() {
@@ -111,6 +84,78 @@ pub fn encode_with_library(mesh: &IndexedMesh, library: Option<&str>) -> Result<
         }
     }
     Ok(out)
+}
+
+/// The bytes [`encode_with_library`] gives for `look` with the vertices
+/// and polygons of `source` in place of its own, written straight from
+/// `source` (a kernel mesh: no indexed copy). `look` holds at most one part
+/// and one material and nothing per polygon or corner (see
+/// `gltf::Planned::new`): every polygon is in its one group.
+pub fn encode_streamed<S: PolygonSource>(
+    source: &S,
+    look: &IndexedMesh,
+    library: Option<&str>,
+) -> Result<Vec<u8>, IoError> {
+    debug_assert!(look.polygon_count() == 0 && look.lines.is_empty() && look.parts.len() <= 1);
+    source.check_vertices()?;
+    let mut out = start(source, look, library);
+    if source.polygon_count() > 0 {
+        if let Some(name) = look.parts.first() {
+            out.extend_from_slice(b"o ");
+            out.extend_from_slice(name.as_bytes());
+            out.push(b'\n');
+        }
+        if let Some(m) = look.materials.first() {
+            out.extend_from_slice(b"usemtl ");
+            out.extend_from_slice(m.name.as_bytes());
+            out.push(b'\n');
+        }
+        source.for_each_polygon(|poly, _| push_face(&mut out, poly, &[], &[]));
+    }
+    Ok(out)
+}
+
+/// The header (`mtllib` when `mesh` has materials and a library is named)
+/// and a `v` line per vertex of `source`.
+fn start<S: PolygonSource>(source: &S, mesh: &IndexedMesh, library: Option<&str>) -> Vec<u8> {
+    let mut out = Vec::with_capacity(16 + source.vertex_count() * 40 + source.corner_count() * 8);
+    out.extend_from_slice(b"# graftal\n");
+    if let Some(name) = library.filter(|_| !mesh.materials.is_empty()) {
+        out.extend_from_slice(b"mtllib ");
+        out.extend_from_slice(name.as_bytes());
+        out.push(b'\n');
+    }
+    for v in 0..source.vertex_count() {
+        out.push(b'v');
+        for c in source.position(v as u32).to_array() {
+            out.push(b' ');
+            push_f64(&mut out, c);
+        }
+        out.push(b'\n');
+    }
+    out
+}
+
+/// One `f` line: 1-based vertex numbers, each with its corner's `vt` and
+/// `vn` line numbers where given (0-based, aligned with `poly`).
+fn push_face(out: &mut Vec<u8>, poly: &[u32], uvs: &[u32], normals: &[u32]) {
+    out.push(b'f');
+    for (i, &v) in poly.iter().enumerate() {
+        out.push(b' ');
+        push_u64(out, u64::from(v) + 1);
+        let (uv, normal) = (uvs.get(i), normals.get(i));
+        if uv.is_some() || normal.is_some() {
+            out.push(b'/');
+            if let Some(&t) = uv {
+                push_u64(out, u64::from(t) + 1);
+            }
+            if let Some(&n) = normal {
+                out.push(b'/');
+                push_u64(out, u64::from(n) + 1);
+            }
+        }
+    }
+    out.push(b'\n');
 }
 
 /// Writes each distinct value of `values` once as `keyword a b [c]`, in

@@ -513,13 +513,12 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
     };
     // A plain model (one part and material, flat, nothing per corner) is
     // written straight from the kernel mesh, with no indexed copy (issue
-    // 38), unless a thumbnail needs the copy too or the file turns Y-up.
+    // 38), unless a thumbnail needs the copy too or the file turns Y-up
+    // (glTF is always Y-up; its writer turns it).
     let thumbnail_size = thumbnail_size(plan);
     let format = v.format;
     let gltf = matches!(format, MeshFormat::Glb | MeshFormat::Gltf);
-    let streamed = (thumbnail_size.is_none()
-        && crate::io::streams(format)
-        && (gltf || args.write.up == crate::cli::Up::Z))
+    let streamed = (thumbnail_size.is_none() && (gltf || args.write.up == crate::cli::Up::Z))
         .then(|| grammar::export_look(program, &result.mesh))
         .flatten();
     let (encoded, thumbnail) = match streamed {
@@ -532,7 +531,7 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
                 )
             };
             let view = result.mesh.canonical_view();
-            let bytes = if gltf {
+            let encoded = if gltf {
                 let glb = format == MeshFormat::Glb;
                 let planned = crate::io::gltf::Planned::new(&view, &look, glb).map_err(failed)?;
                 // The primitives hold all the file needs: the mesh goes
@@ -541,15 +540,14 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
                 if !want_stats {
                     result.mesh = crate::kernel::Mesh::default();
                 }
-                planned.encode()
+                crate::cli::Encoded {
+                    bytes: planned.encode().map_err(failed)?,
+                    companions: Vec::new(),
+                    dropped_wire_edges: 0,
+                }
             } else {
-                crate::io::encode_streamed(&view, &look, format)
-            }
-            .map_err(failed)?;
-            let encoded = crate::cli::Encoded {
-                bytes,
-                companions: Vec::new(),
-                dropped_wire_edges: 0,
+                crate::cli::encode_streamed_for(&view, &look, format, &v.output)
+                    .map_err(|m| fail("failed", EXIT_RUNTIME, m))?
             };
             (encoded, None)
         }
