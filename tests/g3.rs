@@ -499,7 +499,7 @@ fn every_example_keeps_the_kernel_valid_after_every_step() {
 /// it, freed vertex slots to renumber, polygons beyond triangles).
 #[test]
 fn a_file_streamed_from_the_kernel_is_the_indexed_export_byte_for_byte() {
-    use graftal::io::gltf::encode_glb;
+    use graftal::io::gltf::{encode_glb, encode_gltf};
     use graftal::io::MeshFormat;
     let made = [
         "[start]\ncube = { size = 2 }\n",
@@ -555,6 +555,22 @@ fn a_file_streamed_from_the_kernel_is_the_indexed_export_byte_for_byte() {
         // The two halves give the same bytes.
         let planned = graftal::io::gltf::Planned::new(&view, &look, true).unwrap();
         assert!(planned.encode().unwrap() == encode_glb(&full).unwrap());
+        // In parts, as the command line writes it: the header and JSON,
+        // then the planned columns as they are (positions, normals and,
+        // where the triangles share vertices, indices), joined the same.
+        let parts = graftal::io::gltf::Planned::new(&view, &look, true)
+            .unwrap()
+            .encode_parts()
+            .unwrap();
+        assert!(parts.iter().count() >= 3, "columns handed over, not copied");
+        assert_eq!(parts.iter().map(<[u8]>::len).sum::<usize>(), parts.len());
+        assert!(parts
+            .iter()
+            .flatten()
+            .copied()
+            .eq(encode_glb(&full).unwrap()));
+        let text = graftal::io::gltf::Planned::new(&view, &look, false).unwrap();
+        assert!(text.encode_parts().unwrap().into_vec() == encode_gltf(&full).unwrap());
     }
     // Both paths are taken, and each case the streaming path must get
     // right occurs.

@@ -276,7 +276,7 @@ pub enum Skeleton {
 
 /// A mesh encoded for its file, and what the format could not hold.
 pub(crate) struct Encoded {
-    pub bytes: Vec<u8>,
+    pub bytes: io::parts::FileParts,
     /// Files that go beside it (an OBJ's `.mtl`), written with it.
     pub companions: Vec<(PathBuf, Vec<u8>)>,
     pub dropped_wire_edges: usize,
@@ -285,15 +285,13 @@ pub(crate) struct Encoded {
 impl Encoded {
     /// Stages the mesh file and its companions (all land or none).
     pub fn stage(&self, path: &Path, staged: &mut files::Staged) -> Result<(), String> {
-        let with = std::iter::once((path, self.bytes.as_slice())).chain(
-            self.companions
-                .iter()
-                .map(|(p, b)| (p.as_path(), b.as_slice())),
-        );
-        for (path, bytes) in with {
-            staged
-                .stage(path, bytes)
-                .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let cannot =
+            |path: &Path, e: std::io::Error| format!("cannot write {}: {e}", path.display());
+        staged
+            .stage_parts(path, self.bytes.iter())
+            .map_err(|e| cannot(path, e))?;
+        for (path, bytes) in &self.companions {
+            staged.stage(path, bytes).map_err(|e| cannot(path, e))?;
         }
         Ok(())
     }
@@ -352,7 +350,7 @@ pub(crate) fn encode_for(
     }
     .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(Encoded {
-        bytes,
+        bytes: bytes.into(),
         companions: library.into_iter().collect(),
         dropped_wire_edges,
     })
@@ -396,7 +394,7 @@ pub(crate) fn encode_streamed_for(
     }
     .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(Encoded {
-        bytes,
+        bytes: bytes.into(),
         companions: library.into_iter().collect(),
         dropped_wire_edges: 0,
     })

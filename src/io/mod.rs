@@ -25,6 +25,7 @@
 
 pub mod gltf;
 pub mod obj;
+pub mod parts;
 pub mod patches;
 pub mod ply;
 pub mod stl;

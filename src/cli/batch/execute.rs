@@ -21,6 +21,7 @@ use crate::cli::manifest::{Counts, ErrorEntry, FileEntry, Status, VariantEntry};
 use crate::cli::stats::{self, steps_json, StepJson};
 use crate::cli::{manifest, EXIT_RUNTIME};
 use crate::grammar::{self, RunErrorKind, RunOptions};
+use crate::io::parts::FileParts;
 use crate::io::MeshFormat;
 
 /// How a variant's files came to be.
@@ -64,7 +65,8 @@ pub(super) struct Done {
 /// A made variant's products, before they are written: what the cache
 /// keeps and restores.
 struct Artifacts {
-    mesh: Vec<u8>,
+    /// The mesh file's bytes, as its writer left them ([`FileParts`]).
+    mesh: FileParts,
     /// The mesh's SHA-256 once something computed it (it is hashed once).
     mesh_sha256: Option<String>,
     /// Files beside the mesh by extension (an OBJ's `mtl`).
@@ -358,9 +360,12 @@ fn produce(plan: &Plan, v: &Variant) -> Produced {
     };
     let mut artifacts = artifacts;
     if let (Some(cache), Some(key)) = (&plan.cache, &v.cache_key) {
-        let sha = files::hex(&Sha256::digest(&artifacts.mesh));
+        let sha = sha256_of(&artifacts.mesh);
+        // The cache stores one buffer: a file handed over in parts is
+        // joined here, for the cache only.
+        let joined = artifacts.mesh.joined();
         let mut roles: Vec<(String, &[u8], Option<&str>)> =
-            vec![(MESH_ROLE.into(), &artifacts.mesh, Some(&sha))];
+            vec![(MESH_ROLE.into(), &joined, Some(&sha))];
         for (ext, bytes) in &artifacts.companions {
             roles.push((format!("{COMPANION_PREFIX}{ext}"), bytes, None));
         }
@@ -437,13 +442,13 @@ fn restore(plan: &Plan, v: &Variant) -> Option<Artifacts> {
     let hit = cache.lookup(key, &|role| role.starts_with(COMPANION_PREFIX), &required)?;
     let record: Record = serde_json::from_value(hit.record.clone()).ok()?;
     let mut companions = Vec::new();
-    let mut mesh = Vec::new();
+    let mut mesh = FileParts::default();
     let mut mesh_sha256 = None;
     let mut stats = None;
     let mut thumbnail = None;
     for (role, bytes, sha256) in hit.files {
         if role == MESH_ROLE {
-            mesh = bytes;
+            mesh = FileParts::from(bytes);
             mesh_sha256 = Some(sha256);
         } else if role == STATS_ROLE {
             stats = Some(String::from_utf8(bytes).ok()?);
@@ -541,7 +546,7 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
                     result.mesh = crate::kernel::Mesh::default();
                 }
                 crate::cli::Encoded {
-                    bytes: planned.encode().map_err(failed)?,
+                    bytes: planned.encode_parts().map_err(failed)?,
                     companions: Vec::new(),
                     dropped_wire_edges: 0,
                 }
@@ -651,11 +656,13 @@ fn land(plan: &Plan, v: &Variant, a: Artifacts, source: Source) -> Produced {
     if let Some((path, text)) = &stats_file {
         extra.push((path.clone(), text.as_bytes()));
     }
-    let all = std::iter::once((v.output.as_path(), a.mesh.as_slice()))
-        .chain(extra.iter().map(|(p, b)| (p.as_path(), *b)));
-    for (path, bytes) in all {
+    let cannot = |path: &Path, e: std::io::Error| format!("cannot write {}: {e}", path.display());
+    if let Err(e) = staged.stage_parts(&v.output, a.mesh.iter()) {
+        return fail(entry, cannot(&v.output, e));
+    }
+    for (path, bytes) in &extra {
         if let Err(e) = staged.stage(path, bytes) {
-            return fail(entry, format!("cannot write {}: {e}", path.display()));
+            return fail(entry, cannot(path, e));
         }
     }
     entry.bytes = Some(a.mesh.len() as u64);
@@ -663,7 +670,7 @@ fn land(plan: &Plan, v: &Variant, a: Artifacts, source: Source) -> Produced {
     // JSON summary): SHA-256 of a large mesh costs as much as encoding it.
     if plan.batch || plan.want_stats() || args.json || plan.cache.is_some() {
         let sha = a.mesh_sha256.clone();
-        entry.sha256 = Some(sha.unwrap_or_else(|| files::hex(&Sha256::digest(&a.mesh))));
+        entry.sha256 = Some(sha.unwrap_or_else(|| sha256_of(&a.mesh)));
     }
     if plan.batch {
         entry.extra_files = extra
@@ -695,6 +702,15 @@ fn land(plan: &Plan, v: &Variant, a: Artifacts, source: Source) -> Produced {
         thumbnail: a.thumbnail,
         source,
     }
+}
+
+/// The hex SHA-256 of a file given in parts.
+fn sha256_of(parts: &FileParts) -> String {
+    let mut hasher = Sha256::new();
+    for part in parts.iter() {
+        hasher.update(part);
+    }
+    files::hex(&hasher.finalize())
 }
 
 /// Prints each warning the batch has not printed yet.

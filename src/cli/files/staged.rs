@@ -79,8 +79,20 @@ impl Staged {
     /// Writes `bytes` to a temporary file beside `target` (creating its
     /// directory if needed); the target is untouched until [`Self::commit`].
     pub fn stage(&mut self, target: &Path, bytes: &[u8]) -> io::Result<()> {
+        self.stage_parts(target, [bytes])
+    }
+
+    /// [`Self::stage`] of the bytes `parts` give in order (a file's
+    /// columns, written without joining them first).
+    pub fn stage_parts<'a>(
+        &mut self,
+        target: &Path,
+        parts: impl IntoIterator<Item = &'a [u8]>,
+    ) -> io::Result<()> {
         let temp = self.create_temp(target, |file| {
-            file.write_all(bytes)?;
+            for part in parts {
+                file.write_all(part)?;
+            }
             file.flush()
         })?;
         self.files.push((temp, target.to_path_buf()));

@@ -4,6 +4,9 @@ use super::*;
 use crate::geom::material::{AlphaMode, Material};
 use crate::geom::polygon;
 use json::accessor::ComponentType;
+use std::mem::take;
+
+use crate::io::parts::FileParts;
 
 pub(crate) const DATA_URI_PREFIX: &str = "data:application/octet-stream;base64,";
 
@@ -16,18 +19,19 @@ fn gltf_container(doc: Document) -> Result<Vec<u8>, IoError> {
     if doc.bin_len == 0 {
         return Ok(doc.json);
     }
-    let mut bin = Vec::with_capacity(doc.bin_len);
-    doc.write_buffer(&mut bin);
+    let mut bin = FileParts::default();
+    let json = doc.write_buffer(&mut bin);
+    let bin = bin.into_vec();
     // Encoding straight into the output avoids serde escaping a ~100 MB string.
-    splice_base64(doc.json, &bin)
+    splice_base64(json, &bin)
 }
 
 /// Encodes `mesh` as binary glTF (`.glb`): the 12-byte header, the JSON
 /// chunk padded with spaces and the binary chunk (glTF 2.0 §4.4). The JSON
 /// is made from the buffer's layout first, so the buffer is written once,
-/// in place, into an output allocated at its final size.
+/// into an output allocated at its final size.
 pub fn encode_glb(mesh: &IndexedMesh) -> Result<Vec<u8>, IoError> {
-    glb_container(Document::new(mesh, false)?)
+    Ok(glb_container(Document::new(mesh, false)?)?.into_vec())
 }
 
 /// The bytes [`encode_glb`] (`glb`) or [`encode_gltf`] would give for
@@ -91,15 +95,21 @@ impl<'l> Planned<'l> {
 
     /// The file's bytes.
     pub fn encode(self) -> Result<Vec<u8>, IoError> {
+        Ok(self.encode_parts()?.into_vec())
+    }
+
+    /// The file [`Planned::encode`] gives, as parts: a GLB's columns are
+    /// handed over as they were planned, not copied into one buffer.
+    pub fn encode_parts(self) -> Result<FileParts, IoError> {
         if self.glb {
             glb_container(self.doc)
         } else {
-            gltf_container(self.doc)
+            gltf_container(self.doc).map(FileParts::from)
         }
     }
 }
 
-fn glb_container(doc: Document) -> Result<Vec<u8>, IoError> {
+fn glb_container(doc: Document) -> Result<FileParts, IoError> {
     let json_len = doc.json.len().next_multiple_of(4);
     let bin_chunk = if doc.bin_len == 0 { 0 } else { 8 + doc.bin_len };
     let total = 12 + 8 + json_len + bin_chunk;
@@ -107,17 +117,20 @@ fn glb_container(doc: Document) -> Result<Vec<u8>, IoError> {
         message: format!("GLB container: {total} bytes exceed the format's 4 GiB"),
     };
     let total32 = u32::try_from(total).map_err(|_| too_big())?;
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&total32.to_le_bytes());
-    out.extend_from_slice(&(json_len as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&doc.json);
-    out.resize(20 + json_len, b' ');
+    let mut head = Vec::with_capacity(28 + json_len);
+    head.extend_from_slice(b"glTF");
+    head.extend_from_slice(&2u32.to_le_bytes());
+    head.extend_from_slice(&total32.to_le_bytes());
+    head.extend_from_slice(&(json_len as u32).to_le_bytes());
+    head.extend_from_slice(b"JSON");
+    head.extend_from_slice(&doc.json);
+    head.resize(20 + json_len, b' ');
     if doc.bin_len > 0 {
-        out.extend_from_slice(&(doc.bin_len as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
+        head.extend_from_slice(&(doc.bin_len as u32).to_le_bytes());
+        head.extend_from_slice(b"BIN\0");
+    }
+    let mut out = FileParts::from(head);
+    if doc.bin_len > 0 {
         doc.write_buffer(&mut out);
     }
     debug_assert_eq!(out.len(), total);
@@ -578,23 +591,6 @@ fn plan_flat_surface<S: PolygonSource>(
     Ok(draw)
 }
 
-/// Appends `values` little-endian: one copy on a little-endian machine.
-fn put_le<T: bytemuck::Pod>(out: &mut Vec<u8>, values: &[T], le: impl Fn(&T) -> [u8; 4]) {
-    if cfg!(target_endian = "little") {
-        out.extend_from_slice(bytemuck::cast_slice(values));
-    } else {
-        values.iter().for_each(|x| out.extend_from_slice(&le(x)));
-    }
-}
-
-fn put_f32s(out: &mut Vec<u8>, values: &[f32]) {
-    put_le(out, values, |x| x.to_le_bytes());
-}
-
-fn put_u32s(out: &mut Vec<u8>, values: &[u32]) {
-    put_le(out, values, |x| x.to_le_bytes());
-}
-
 /// The document: its JSON, made from the buffer's layout, and the
 /// primitives that fill the buffer when it is written.
 struct Document<'m> {
@@ -840,36 +836,42 @@ impl<'m> Document<'m> {
     }
 
     /// Appends the binary buffer (`bin_len` bytes, little-endian) to `out`,
-    /// array by array as [`Builder::primitive`] laid them out.
-    fn write_buffer(&self, out: &mut Vec<u8>) {
+    /// array by array as [`Builder::primitive`] laid them out: each column
+    /// handed over as planned, only the converted ones (vertex scalars,
+    /// 16-bit indices) copied. Returns the JSON.
+    fn write_buffer(self, out: &mut FileParts) -> Vec<u8> {
         let start = out.len();
-        for (draw, arrays) in &self.draws {
-            for &array in arrays {
-                let at = out.len();
+        for (mut draw, arrays) in self.draws {
+            let count = |draw: &Draw, array| draw.bytes(array);
+            for array in arrays {
+                let (at, bytes) = (out.len(), count(&draw, array));
                 match array {
-                    Array::Positions => put_f32s(out, draw.positions.as_flattened()),
-                    Array::Normals => put_f32s(out, draw.normals.as_flattened()),
-                    Array::Uvs => put_f32s(out, draw.uvs.as_flattened()),
-                    Array::Colors => put_f32s(out, draw.colors.as_flattened()),
+                    Array::Positions => out.push_f32s(take(&mut draw.positions).into_flattened()),
+                    Array::Normals => out.push_f32s(take(&mut draw.normals).into_flattened()),
+                    Array::Uvs => out.push_f32s(take(&mut draw.uvs).into_flattened()),
+                    Array::Colors => out.push_f32s(take(&mut draw.colors).into_flattened()),
                     Array::Scalar(s) => {
                         let values = self.scalars[s].1;
-                        for &v in &draw.sources {
-                            out.extend_from_slice(&(values[v as usize] as f32).to_le_bytes());
-                        }
+                        let column = draw.sources.iter().map(|&v| values[v as usize] as f32);
+                        out.push_f32s(column.collect());
                     }
                     Array::Indices(ComponentType::U16) => {
-                        for &i in &draw.indices {
-                            out.extend_from_slice(&(i as u16).to_le_bytes());
-                        }
+                        let mut column: Vec<u8> = draw
+                            .indices
+                            .iter()
+                            .flat_map(|&i| (i as u16).to_le_bytes())
+                            .collect();
                         // The next view starts 4-byte aligned.
-                        out.resize(out.len().next_multiple_of(4), 0);
+                        column.resize(column.len().next_multiple_of(4), 0);
+                        out.push_bytes(column);
                     }
-                    Array::Indices(_) => put_u32s(out, &draw.indices),
+                    Array::Indices(_) => out.push_u32s(take(&mut draw.indices)),
                 }
-                debug_assert_eq!(out.len() - at, draw.bytes(array));
+                debug_assert_eq!(out.len() - at, bytes);
             }
         }
         debug_assert_eq!(out.len() - start, self.bin_len);
+        self.json
     }
 }
 

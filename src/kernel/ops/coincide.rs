@@ -15,7 +15,7 @@
 use glam::DVec3;
 use rustc_hash::FxHashMap;
 
-use super::merge::{cell_coordinate, cluster_roots, weld_gone, MergeResult};
+use super::merge::{cell_coordinate, cluster_roots, weld_gone, MergeResult, VertPoints};
 use super::{canonical, OpError};
 use crate::kernel::ids::VertId;
 use crate::kernel::mesh::Mesh;
@@ -130,8 +130,7 @@ pub fn coinciding(
         grid.near(mesh, mesh.position(v), distance, &mut all);
     }
     let all = canonical(&all);
-    let positions: Vec<DVec3> = all.iter().map(|&v| mesh.position(v)).collect();
-    let roots = cluster_roots(&positions, distance);
+    let roots = cluster_roots(&VertPoints { mesh, verts: &all }, distance);
     let is_new = |v: VertId| order.contains_key(&v);
     // Per root: the best survivor (old by id, then new by listing order)
     // and whether the cluster holds a new vertex at all.

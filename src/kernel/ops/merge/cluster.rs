@@ -6,17 +6,71 @@ use super::*;
 /// Up to this many points [`cluster_roots`] compares every pair.
 pub(super) const SMALL_CLUSTER_INPUT: usize = 24;
 
+/// Points read by index: a list, or some of a mesh's vertices read in
+/// place ([`VertPoints`]), so a merge of a million vertices does not first
+/// copy their 24 MB of positions (issue 38: the memory a step touches for
+/// the first time is much of its cost).
+pub(in crate::kernel::ops) trait Points {
+    fn count(&self) -> usize;
+    fn point(&self, i: usize) -> DVec3;
+}
+
+impl Points for [DVec3] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    #[inline]
+    fn point(&self, i: usize) -> DVec3 {
+        self[i]
+    }
+}
+
+impl Points for Vec<DVec3> {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    #[inline]
+    fn point(&self, i: usize) -> DVec3 {
+        self[i]
+    }
+}
+
+/// The positions of `verts` (live vertices of `mesh`), in that order.
+pub(in crate::kernel::ops) struct VertPoints<'a> {
+    pub mesh: &'a Mesh,
+    pub verts: &'a [VertId],
+}
+
+impl Points for VertPoints<'_> {
+    fn count(&self) -> usize {
+        self.verts.len()
+    }
+    #[inline]
+    fn point(&self, i: usize) -> DVec3 {
+        self.mesh.position(self.verts[i])
+    }
+}
+
+/// Every point of `points`, in order.
+fn each<P: Points + ?Sized>(points: &P) -> impl Iterator<Item = DVec3> + '_ {
+    (0..points.count()).map(|i| points.point(i))
+}
+
 /// For each point, the lowest index of its cluster: the connected component
 /// of the graph joining points at most `distance` apart.
-pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
-    if points.len() <= SMALL_CLUSTER_INPUT {
+pub(in crate::kernel::ops) fn cluster_roots<P: Points + ?Sized>(
+    points: &P,
+    distance: f64,
+) -> Vec<u32> {
+    let n = points.count();
+    if n <= SMALL_CLUSTER_INPUT {
         // A grammar command's merge often looks at a handful of points;
         // the sort below costs a fixed few microseconds, the pairs nothing.
-        let mut sets = UnionFind::new(points.len());
-        for (i, p) in points.iter().enumerate() {
-            for (j, q) in points.iter().enumerate().skip(i + 1) {
+        let mut sets = UnionFind::new(n);
+        for (i, p) in each(points).enumerate() {
+            for (j, q) in each(points).enumerate().skip(i + 1) {
                 let close = if distance > 0.0 {
-                    within(*p, *q, distance)
+                    within(p, q, distance)
                 } else {
                     p.x == q.x && p.y == q.y && p.z == q.z
                 };
@@ -25,7 +79,7 @@ pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> 
                 }
             }
         }
-        return (0..points.len() as u32).map(|i| sets.find(i)).collect();
+        return (0..n as u32).map(|i| sets.find(i)).collect();
     }
     if distance > 0.0 {
         return grid_roots(points, distance);
@@ -33,9 +87,8 @@ pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> 
     // Exact coincidence: sort by the coordinates' bits; equal runs are the
     // clusters. Adding +0 folds −0 onto +0, so equal coordinates have
     // equal bits.
-    let mut sets = UnionFind::new(points.len());
-    let mut keyed: Vec<([u64; 3], u32)> = points
-        .iter()
+    let mut sets = UnionFind::new(n);
+    let mut keyed: Vec<([u64; 3], u32)> = each(points)
         .enumerate()
         .map(|(i, p)| {
             (
@@ -54,7 +107,7 @@ pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> 
             sets.union(pair[0].1, pair[1].1);
         }
     }
-    (0..points.len() as u32).map(|i| sets.find(i)).collect()
+    (0..n as u32).map(|i| sets.find(i)).collect()
 }
 
 /// [`cluster_roots`] for `distance > 0`, on a grid of cell size `distance`:
@@ -67,10 +120,10 @@ pub(in crate::kernel::ops) fn cluster_roots(points: &[DVec3], distance: f64) -> 
 /// visited in order. A linear sort plus a linear sweep over sequential
 /// memory; hashing a million points into cells and probing 13 neighbours
 /// each was measured about twice as slow.
-pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
+pub(super) fn grid_roots<P: Points + ?Sized>(points: &P, distance: f64) -> Vec<u32> {
     // Cell coordinates are recomputed where needed rather than stored: a
     // stored copy is 24 bytes a point of memory touched for the first time.
-    let cell = |p: &DVec3| {
+    let cell = |p: DVec3| {
         [
             cell_coordinate(p.x, distance),
             cell_coordinate(p.y, distance),
@@ -78,7 +131,7 @@ pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
         ]
     };
     let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
-    for c in points.iter().map(cell) {
+    for c in each(points).map(cell) {
         for axis in 0..3 {
             low[axis] = low[axis].min(c[axis]);
             high[axis] = high[axis].max(c[axis]);
@@ -95,8 +148,7 @@ pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
     if bits.iter().sum::<u32>() <= 64 {
         // Fast path: the cell packed into one u64 (x | y | z).
         let (shift_y, shift_x) = (bits[2], bits[1] + bits[2]);
-        let keys: Vec<u64> = points
-            .iter()
+        let keys: Vec<u64> = each(points)
             .map(|p| {
                 let c = cell(p);
                 let field = |axis: usize| (c[axis] - low[axis] + 1) as u64;
@@ -111,7 +163,7 @@ pub(super) fn grid_roots(points: &[DVec3], distance: f64) -> Vec<u32> {
         gathered_roots(&cell_keys, &order, points, distance, step)
     } else {
         // Cells spanning more than 2⁶⁴ in all: sort the coordinates as they are.
-        let mut keyed: Vec<([i64; 3], u32)> = points.iter().map(cell).zip(0u32..).collect();
+        let mut keyed: Vec<([i64; 3], u32)> = each(points).map(cell).zip(0u32..).collect();
         keyed.sort_unstable();
         let order: Vec<u32> = keyed.iter().map(|&(_, i)| i).collect();
         let cell_keys: Vec<[i64; 3]> = keyed.into_iter().map(|(c, _)| c).collect();
@@ -211,14 +263,14 @@ pub(super) const FORWARD_ROWS: [(i64, i64, i64, i64); 5] = [
 /// then maps the clusters back: for each input point, the lowest input
 /// index of its cluster. Gathering first turns the pair tests' scattered
 /// reads into sequential ones (most of the cost at a million points).
-pub(super) fn gathered_roots<K: Copy + Ord>(
+pub(super) fn gathered_roots<K: Copy + Ord, P: Points + ?Sized>(
     sorted_cells: &[K],
     order: &[u32],
-    points: &[DVec3],
+    points: &P,
     distance: f64,
     step: impl Fn(K, [i64; 3]) -> K,
 ) -> Vec<u32> {
-    let gathered: Vec<DVec3> = order.iter().map(|&i| points[i as usize]).collect();
+    let gathered: Vec<DVec3> = order.iter().map(|&i| points.point(i as usize)).collect();
     let mut sets = UnionFind::new(order.len());
     sweep(sorted_cells, &gathered, distance, &mut sets, step);
     let mut lowest = vec![u32::MAX; order.len()];

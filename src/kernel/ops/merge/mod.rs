@@ -85,10 +85,15 @@ pub fn merge_by_distance(
     for &v in &verts {
         mesh.check_vert(v)?;
     }
-    let positions: Vec<DVec3> = verts.iter().map(|&v| mesh.position(v)).collect();
     // Union by lower index and ids sorted: each root is its cluster's
     // lowest id, which is the survivor.
-    let targets = cluster_roots(&positions, distance);
+    let targets = cluster_roots(
+        &VertPoints {
+            mesh,
+            verts: &verts,
+        },
+        distance,
+    );
     weld(mesh, &verts, &targets)
 }
 
@@ -168,8 +173,13 @@ pub fn mirror(
         }
     }
     let candidates = canonical(&candidates);
-    let positions: Vec<DVec3> = candidates.iter().map(|&v| mesh.position(v)).collect();
-    let roots = cluster_roots(&positions, merge_distance);
+    let roots = cluster_roots(
+        &VertPoints {
+            mesh,
+            verts: &candidates,
+        },
+        merge_distance,
+    );
     let is_copy = |v: VertId| dup.copies.verts.binary_search(&v).is_ok();
     // Per cluster, keep an original if there is one (lowest id first).
     let rank = |i: usize| (is_copy(candidates[i]), i);
@@ -220,6 +230,6 @@ mod weld;
 
 #[cfg(test)]
 use cluster::*;
-pub(in crate::kernel::ops) use cluster::{cell_coordinate, cluster_roots};
+pub(in crate::kernel::ops) use cluster::{cell_coordinate, cluster_roots, VertPoints};
 pub(in crate::kernel::ops) use weld::weld_gone;
 use weld::*;

@@ -388,7 +388,7 @@ fn grid_clustering_matches_brute_force() {
     }
     // Exactly at the distance, across a cell border, on negative coordinates.
     let points = [v3(-0.5, 0.0, 0.0), v3(0.5, 0.0, 0.0), v3(-1.5, -1.0, 0.0)];
-    assert_eq!(cluster_roots(&points, 1.0), vec![0, 0, 2]);
+    assert_eq!(cluster_roots(&points[..], 1.0), vec![0, 0, 2]);
 }
 
 #[test]
