@@ -54,21 +54,29 @@ impl FileParts {
     /// Appends a column of `f32`s, written little-endian: taken as it is
     /// on a little-endian machine.
     pub fn push_f32s(&mut self, values: Vec<f32>) {
-        if cfg!(target_endian = "little") {
-            self.len += 4 * values.len();
-            self.parts.push(Part::F32(values));
-        } else {
-            self.push_bytes(values.iter().flat_map(|x| x.to_le_bytes()).collect());
-        }
+        self.push_column(values, Part::F32);
     }
 
     /// Appends a column of `u32`s, written little-endian.
     pub fn push_u32s(&mut self, values: Vec<u32>) {
+        self.push_column(values, Part::U32);
+    }
+
+    fn push_column<T: bytemuck::Pod>(&mut self, values: Vec<T>, part: fn(Vec<T>) -> Part) {
         if cfg!(target_endian = "little") {
-            self.len += 4 * values.len();
-            self.parts.push(Part::U32(values));
+            self.len += std::mem::size_of_val(&values[..]);
+            self.parts.push(part(values));
         } else {
-            self.push_bytes(values.iter().flat_map(|x| x.to_le_bytes()).collect());
+            // Each value's bytes reversed: little-endian.
+            let bytes: &[u8] = bytemuck::cast_slice(&values);
+            let size = std::mem::size_of::<T>();
+            self.push_bytes(
+                bytes
+                    .chunks(size)
+                    .flat_map(|c| c.iter().rev())
+                    .copied()
+                    .collect(),
+            );
         }
     }
 

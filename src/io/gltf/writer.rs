@@ -842,9 +842,9 @@ impl<'m> Document<'m> {
     fn write_buffer(self, out: &mut FileParts) -> Vec<u8> {
         let start = out.len();
         for (mut draw, arrays) in self.draws {
-            let count = |draw: &Draw, array| draw.bytes(array);
             for array in arrays {
-                let (at, bytes) = (out.len(), count(&draw, array));
+                // Measured before a column is taken out of the draw.
+                let (at, bytes) = (out.len(), draw.bytes(array));
                 match array {
                     Array::Positions => out.push_f32s(take(&mut draw.positions).into_flattened()),
                     Array::Normals => out.push_f32s(take(&mut draw.normals).into_flattened()),

@@ -25,16 +25,6 @@ impl Points for [DVec3] {
     }
 }
 
-impl Points for Vec<DVec3> {
-    fn count(&self) -> usize {
-        self.len()
-    }
-    #[inline]
-    fn point(&self, i: usize) -> DVec3 {
-        self[i]
-    }
-}
-
 /// The positions of `verts` (live vertices of `mesh`), in that order.
 pub(in crate::kernel::ops) struct VertPoints<'a> {
     pub mesh: &'a Mesh,

@@ -327,13 +327,17 @@ fn small_inputs_cluster_as_the_grid_does() {
             })
             .collect();
         let expected = if distance > 0.0 {
-            grid_roots(&points, distance)
+            grid_roots(&points[..], distance)
         } else {
             let mut more = points.clone();
             more.resize(SMALL_CLUSTER_INPUT + 1, v3(9.0, 9.0, 9.0));
-            cluster_roots(&more, 0.0)[..n].to_vec()
+            cluster_roots(&more[..], 0.0)[..n].to_vec()
         };
-        assert_eq!(cluster_roots(&points, distance), expected, "seed {seed}");
+        assert_eq!(
+            cluster_roots(&points[..], distance),
+            expected,
+            "seed {seed}"
+        );
     }
 }
 
@@ -356,7 +360,11 @@ fn grid_clustering_matches_brute_force() {
             }
         }
         let expected: Vec<u32> = (0..points.len() as u32).map(|i| sets.find(i)).collect();
-        assert_eq!(cluster_roots(&points, distance), expected, "seed {seed}");
+        assert_eq!(
+            cluster_roots(&points[..], distance),
+            expected,
+            "seed {seed}"
+        );
     }
     // Cells too many to pack into 64 bits (the tuple-sorted path), and
     // saturated cell coordinates: still exact.
@@ -381,7 +389,7 @@ fn grid_clustering_matches_brute_force() {
             }
         }
         let expected: Vec<u32> = (0..points.len() as u32).map(|i| sets.find(i)).collect();
-        assert_eq!(cluster_roots(&points, 1e-6), expected, "seed {seed}");
+        assert_eq!(cluster_roots(&points[..], 1e-6), expected, "seed {seed}");
         let n = points.len() as u32;
         assert_eq!(expected[n as usize - 2], n - 3);
         assert_eq!(expected[n as usize - 1], n - 1);
@@ -517,7 +525,7 @@ fn merge_a_million_points_in_linear_time() {
     let verts = all_verts(&m);
     let positions: Vec<DVec3> = verts.iter().map(|&v| m.position(v)).collect();
     let start = std::time::Instant::now();
-    let roots = cluster_roots(&positions, distance);
+    let roots = cluster_roots(&positions[..], distance);
     println!("clustering alone: {:?}", start.elapsed());
     drop((positions, roots));
     let start = std::time::Instant::now();
