@@ -77,6 +77,66 @@ fn the_peer_surface_meets_its_tolerance_with_few_triangles() {
     assert!(f["triangles"].as_u64().unwrap() > 3 * triangles);
 }
 
+/// A uniform grid without seams or poles is built from its samples in closed form, and its
+/// vertices carry their surface parameters in bulk (issue 38): every vertex of a 6 × 4-cell
+/// grid has its own (i/6, j/4), and the parameters grow with x and y as the surface does.
+#[test]
+fn a_plain_uniform_grid_carries_each_vertex_its_own_surface_parameters() {
+    let dir = temp_dir();
+    let text = "uv = { projection = \"surface\" }\n\n[nurbs.flat]\ndegree = 3\nsize = [5, 4]\npoints = [\"i\", \"j\", \"0.1 * i * j\"]\n\n[start]\nnurbs = { surface = \"flat\", mode = \"uniform\", cells = [6, 4], per_patch = false }\n";
+    let s = run_text(dir.path(), "flat", text);
+    assert_eq!(surface_of(&s, "start")["triangles"], 48);
+    let obj = std::fs::read_to_string(dir.path().join("flat.obj")).unwrap();
+    let numbers = |line: &str| -> Vec<f64> {
+        line.split_whitespace()
+            .skip(1)
+            .map(|x| x.parse().unwrap())
+            .collect()
+    };
+    let positions: Vec<Vec<f64>> = obj
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(numbers)
+        .collect();
+    let uvs: Vec<Vec<f64>> = obj
+        .lines()
+        .filter(|l| l.starts_with("vt "))
+        .map(numbers)
+        .collect();
+    assert_eq!(positions.len(), 35);
+    // Each corner's (position, uv), through the faces.
+    let mut corners = Vec::new();
+    for face in obj.lines().filter(|l| l.starts_with("f ")) {
+        for corner in face.split_whitespace().skip(1) {
+            let ids: Vec<usize> = corner.split('/').map(|x| x.parse().unwrap()).collect();
+            corners.push((positions[ids[0] - 1].clone(), uvs[ids[1] - 1].clone()));
+        }
+    }
+    let mut seen: Vec<[u64; 2]> = corners
+        .iter()
+        .map(|(_, uv)| [uv[0].to_bits(), uv[1].to_bits()])
+        .collect();
+    seen.sort_unstable();
+    seen.dedup();
+    let mut grid: Vec<[u64; 2]> = (0..=6)
+        .flat_map(|i| {
+            (0..=4).map(move |j| [(i as f64 / 6.0).to_bits(), (j as f64 / 4.0).to_bits()])
+        })
+        .collect();
+    grid.sort_unstable();
+    assert_eq!(seen, grid, "one (u, v) per grid sample");
+    for (p, uv) in &corners {
+        for (q, wv) in &corners {
+            if uv[0] < wv[0] {
+                assert!(p[0] < q[0], "x grows with u: {p:?} {uv:?} / {q:?} {wv:?}");
+            }
+            if uv[1] < wv[1] {
+                assert!(p[1] < q[1], "y grows with v: {p:?} {uv:?} / {q:?} {wv:?}");
+            }
+        }
+    }
+}
+
 #[test]
 fn every_mode_of_the_seed_patch_is_a_disk() {
     let s = run_stats(&["rules/bezier-patch.toml"]);

@@ -15,11 +15,11 @@ use crate::kernel::build::KernelBuilder;
 use crate::kernel::ops::Selection;
 use crate::kernel::{AttrValue, Domain, Mesh};
 use crate::nurbs::error::Dir;
-use crate::nurbs::mesh::TriMesh;
 use crate::nurbs::pn::{pn_triangles, Creases, Pattern, PnError, PnOptions};
 use crate::nurbs::surface::NurbsSurface;
 use crate::nurbs::tess::{
-    tessellate, tessellate_set, AdaptiveOptions, Diagonal, Mode, TessError, Tessellation,
+    tessellate, tessellate_set, uniform_grid, AdaptiveOptions, Diagonal, Mode, TessError,
+    Tessellation, UniformGrid,
 };
 use crate::nurbs::tess::{Combine, EdgeTest};
 use crate::rules::nurbs_def::SurfaceDef;
@@ -76,13 +76,28 @@ fn triangle_cap(budget: u64) -> usize {
     usize::try_from(budget / 3).unwrap_or(usize::MAX)
 }
 
+/// A surface tessellated: a mesh, or a uniform grid kept as its samples.
+enum Tessellated {
+    Mesh(Tessellation),
+    Grid(UniformGrid),
+}
+
+/// What the caller takes: a grid where the tessellation is one (it builds the mesh in closed
+/// form), or always a mesh.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Shape {
+    GridOrMesh,
+    Mesh,
+}
+
 /// The step's surface tessellated as its parameters say; the stats of one
 /// tessellation.
 fn tessellate_call(
     ctx: &SurfaceContext,
     args: &TessellateArgs,
     copies: usize,
-) -> Result<(Tessellation, SurfaceStats), StepError> {
+    shape: Shape,
+) -> Result<(Tessellated, SurfaceStats), StepError> {
     let def = &ctx.surfaces[args.surface];
     let file_patches = |resource: usize| {
         ctx.inputs
@@ -160,9 +175,22 @@ fn tessellate_call(
     // Every copy counts against the budget.
     let cap = triangle_cap(ctx.budget / copies.max(1) as u64);
     // One surface keeps its own path (seams and poles within it); a set is welded across.
-    let t = match set.surfaces.as_slice() {
-        [surface] if !def.is_set() => tessellate(surface, &mode, cap),
-        _ => tessellate_set(&set, &mode, cap),
+    let t = match (set.surfaces.as_slice(), &mode, shape) {
+        (
+            [surface],
+            &Mode::Uniform {
+                cells,
+                per_patch,
+                diagonal: Diagonal::Fixed,
+            },
+            Shape::GridOrMesh,
+        ) if !def.is_set() => match uniform_grid(surface, cells, per_patch, cap) {
+            Ok(Some(grid)) => Ok(Tessellated::Grid(grid)),
+            Ok(None) => tessellate(surface, &mode, cap).map(Tessellated::Mesh),
+            Err(e) => Err(e),
+        },
+        ([surface], ..) if !def.is_set() => tessellate(surface, &mode, cap).map(Tessellated::Mesh),
+        _ => tessellate_set(&set, &mode, cap).map(Tessellated::Mesh),
     };
     let t = t.map_err(|e| match e {
         TessError::TriangleLimit { needed, .. } => StepError::FieldTooLarge {
@@ -180,13 +208,17 @@ fn tessellate_call(
             message: other.to_string(),
         },
     })?;
+    let tess = match &t {
+        Tessellated::Mesh(t) => &t.stats,
+        Tessellated::Grid(g) => &g.stats,
+    };
     let stats = SurfaceStats {
         runs: 1,
-        triangles: t.stats.triangles as u64,
-        vertices: t.stats.vertices as u64,
-        max_deviation: t.stats.max_deviation,
-        max_level: t.stats.max_level,
-        rounds: t.stats.rounds,
+        triangles: tess.triangles as u64,
+        vertices: tess.vertices as u64,
+        max_deviation: tess.max_deviation,
+        max_level: tess.max_level,
+        rounds: tess.rounds,
         patches: set
             .surfaces
             .iter()
@@ -208,41 +240,53 @@ pub(super) fn create(
     mesh: &mut Mesh,
     args: &TessellateArgs,
 ) -> Result<(Selection, SurfaceStats), StepError> {
-    let (t, stats) = tessellate_call(ctx, args, 1)?;
-    let made = match append_grid(mesh, &t.mesh) {
-        Some(made) => made,
-        None => append_surface(
-            mesh,
-            &t.mesh.positions,
-            &t.mesh.uvs,
-            &t.mesh.triangles,
-            None,
-        )?,
+    let (t, stats) = tessellate_call(ctx, args, 1, Shape::GridOrMesh)?;
+    let made = match t {
+        Tessellated::Grid(g) => {
+            let uvs = g.us.iter().flat_map(|&u| g.vs.iter().map(move |&v| [u, v]));
+            match append_grid(mesh, [g.us.len(), g.vs.len()], &g.positions, Some(uvs)) {
+                Some(made) => made,
+                None => append_surface(mesh, &g.positions, &g.uvs(), &g.triangles(), None)?,
+            }
+        }
+        Tessellated::Mesh(t) => {
+            let t = &t.mesh;
+            let with_uv = !t.uvs.is_empty() && t.uvs.len() == t.positions.len();
+            let uvs = with_uv.then_some(t.uvs.iter().copied());
+            let made = grid_shape(t.positions.len(), &t.triangles)
+                .and_then(|shape| append_grid(mesh, shape, &t.positions, uvs));
+            match made {
+                Some(made) => made,
+                None => append_surface(mesh, &t.positions, &t.uvs, &t.triangles, None)?,
+            }
+        }
     };
     Ok((made, stats))
 }
 
 /// A tessellation that is a grid (uniform, without seams or poles) built
 /// in closed form, in parallel ([`Mesh::append_triangle_grid`]): the mesh
-/// [`append_surface`] would build. `None` when it is not a grid or the
-/// kernel declines; nothing is changed then.
-fn append_grid(mesh: &mut Mesh, surface: &TriMesh) -> Option<Selection> {
-    let [nu, nv] = grid_shape(surface.positions.len(), &surface.triangles)?;
-    let positions: Vec<DVec3> = surface
-        .positions
-        .iter()
-        .map(|p| DVec3::from_array(*p))
-        .collect();
-    let made = mesh.append_triangle_grid(nu, nv, &positions)?;
-    if !surface.uvs.is_empty() && surface.uvs.len() == positions.len() {
+/// [`append_surface`] would build, with the vertices' surface parameters
+/// `uvs`, in vertex order, when given. `None` when the kernel declines;
+/// nothing is changed then.
+fn append_grid(
+    mesh: &mut Mesh,
+    [nu, nv]: [usize; 2],
+    positions: &[[f64; 3]],
+    uvs: Option<impl Iterator<Item = [f64; 2]> + Clone>,
+) -> Option<Selection> {
+    let made = mesh.append_triangle_grid(nu, nv, positions)?;
+    if let Some(uvs) = uvs {
         for name in [SURFACE_U, SURFACE_V] {
             // A same-named layer of another kind stays; values then do not
             // land (as in the face-by-face build).
             let _ = mesh.add_layer(name, Domain::Vert, AttrValue::Scalar(0.0));
         }
-        for (v, uv) in made.verts.iter().zip(&surface.uvs) {
-            let _ = mesh.set_attr(SURFACE_U, Domain::Vert, v.index(), AttrValue::Scalar(uv[0]));
-            let _ = mesh.set_attr(SURFACE_V, Domain::Vert, v.index(), AttrValue::Scalar(uv[1]));
+        let end = made.verts.iter().map(|v| v.index() + 1).max().unwrap_or(0);
+        for (name, axis) in [(SURFACE_U, 0), (SURFACE_V, 1)] {
+            let values = made.verts.iter().zip(uvs.clone());
+            let values = values.map(|(v, uv)| (v.index(), uv[axis]));
+            let _ = mesh.set_scalar_attrs(name, Domain::Vert, end, values);
         }
     }
     Some(made)
@@ -285,7 +329,10 @@ pub(super) fn place_parts(
     if placements.is_empty() {
         return Ok((Selection::new(), SurfaceStats::default()));
     }
-    let (t, one) = tessellate_call(ctx, args, placements.len())?;
+    let (t, one) = tessellate_call(ctx, args, placements.len(), Shape::Mesh)?;
+    let Tessellated::Mesh(t) = t else {
+        unreachable!("`Shape::Mesh` asks for a mesh");
+    };
     let n = placements.len() as u64;
     let stats = SurfaceStats {
         triangles: one.triangles * n,

@@ -238,6 +238,24 @@ impl Layer {
         Ok(())
     }
 
+    /// Stores scalar values, slot by slot, as [`Layer::set`] would one at a time, but in one pass
+    /// over the storage ([`Stored::write_many`]). Every slot lies below `end`: room for the
+    /// prefix to reach it is reserved once.
+    fn set_scalars(
+        &mut self,
+        end: usize,
+        values: impl IntoIterator<Item = (usize, f64)>,
+    ) -> Result<(), LayerKind> {
+        let (LayerData::Scalar(stored), AttrValue::Scalar(default)) =
+            (&mut self.data, self.default)
+        else {
+            return Err(self.kind());
+        };
+        stored.reserve_growth(end.saturating_sub(stored.len()));
+        stored.write_many(default, values);
+        Ok(())
+    }
+
     /// Stores a value of the layer's kind, extending the prefix only for a
     /// value that is not the default.
     fn store(&mut self, slot: usize, value: AttrValue) {
@@ -322,6 +340,18 @@ impl Attributes {
     ) -> Option<Result<(), LayerKind>> {
         let i = self.find(name, domain)?;
         Some(self.layers[i].set(slot, value))
+    }
+
+    /// Many [`Attributes::set`]s of one scalar layer, the layer looked up once.
+    pub(crate) fn set_scalars(
+        &mut self,
+        name: &str,
+        domain: Domain,
+        end: usize,
+        values: impl IntoIterator<Item = (usize, f64)>,
+    ) -> Option<Result<(), LayerKind>> {
+        let i = self.find(name, domain)?;
+        Some(self.layers[i].set_scalars(end, values))
     }
 
     pub(crate) fn on_new(&mut self, domain: Domain, slot: usize) {
@@ -453,5 +483,49 @@ mod tests {
         b.set(20, AttrValue::Scalar(1.0)).unwrap();
         assert_eq!(a, b);
         assert!(a.len() < b.len());
+    }
+
+    #[test]
+    fn scalars_set_in_one_call_read_as_one_set_each() {
+        let mut one = Attributes::default();
+        let mut many = Attributes::default();
+        for a in [&mut one, &mut many] {
+            a.add_layer("u", Domain::Vert, AttrValue::Scalar(0.5))
+                .unwrap();
+            a.add_layer("k", Domain::Vert, AttrValue::Int(0)).unwrap();
+        }
+        // Defaults past the prefix, a grid's cycling values, then a slot rewritten.
+        let values: Vec<(usize, f64)> = (0..3000)
+            .map(|k| {
+                (
+                    k + 10,
+                    if k % 5 == 0 {
+                        0.5
+                    } else {
+                        (k % 700) as f64 * 0.25
+                    },
+                )
+            })
+            .chain([(12, -1.0), (5000, 0.5)])
+            .collect();
+        for &(slot, x) in &values {
+            one.set("u", Domain::Vert, slot, AttrValue::Scalar(x))
+                .unwrap()
+                .unwrap();
+        }
+        many.set_scalars("u", Domain::Vert, 5001, values.iter().copied())
+            .unwrap()
+            .unwrap();
+        assert_eq!(many, one);
+        let u = many.layer("u", Domain::Vert).unwrap();
+        assert_eq!(u.len(), 3010, "a default past the prefix is not stored");
+        assert_eq!(u.get(12), AttrValue::Scalar(-1.0));
+        assert_eq!(u.get(11), AttrValue::Scalar(0.25));
+        // Another kind's layer refuses and keeps its values; a missing layer is `None`.
+        let before = many.clone();
+        let refused = many.set_scalars("k", Domain::Vert, 3, [(1, 2.0)]);
+        assert_eq!(refused, Some(Err(LayerKind::Int)));
+        assert!(many.set_scalars("w", Domain::Vert, 3, [(1, 2.0)]).is_none());
+        assert_eq!(many, before);
     }
 }

@@ -258,11 +258,11 @@ impl Mesh {
     /// closed form (the mesh has freed slots to reuse, or the ids would
     /// pass `u32`), or the input is not a grid of finite points with at
     /// least one cell: the caller then builds face by face.
-    pub fn append_triangle_grid(
+    pub fn append_triangle_grid<P: Copy + Into<DVec3> + Sync>(
         &mut self,
         nu: usize,
         nv: usize,
-        positions: &[DVec3],
+        positions: &[P],
     ) -> Option<Selection> {
         if nu < 2 || nv < 2 || nu.checked_mul(nv) != Some(positions.len()) {
             return None;
@@ -270,7 +270,7 @@ impl Mesh {
         if self.verts.has_free() || self.edges.has_free() || self.loops.has_free() {
             return None;
         }
-        if self.faces.has_free() || !positions.iter().all(|p| p.is_finite()) {
+        if self.faces.has_free() || !positions.iter().all(|&p| p.into().is_finite()) {
             return None;
         }
         let (cu, cv) = (nu - 1, nv - 1);
@@ -300,7 +300,7 @@ impl Mesh {
         let vert_records = (0..positions.len()).into_par_iter().map(|v| {
             let (i, j) = (v / nv, v % nv);
             Vert {
-                position: positions[v],
+                position: positions[v].into(),
                 edge: Some(grid.disk(i, j).0[0]),
                 slot: Occupied::Yes,
             }
@@ -351,7 +351,7 @@ impl Mesh {
         let face_records = (0..2 * cells).into_par_iter().map(|f| {
             let (cell, t) = (f / 2, f % 2);
             let (i, j) = (cell / cv, cell % cv);
-            let corners = Grid::ring(i, j, t).map(|(vi, vj)| positions[vi * nv + vj]);
+            let corners = Grid::ring(i, j, t).map(|(vi, vj)| positions[vi * nv + vj].into());
             Face {
                 first_loop: grid.loop_id(3 * f),
                 len: 3,

@@ -592,6 +592,19 @@ impl Mesh {
         self.attributes.set(name, domain, index, value)
     }
 
+    /// [`Mesh::set_attr`] for many slots of one scalar layer: the layer looked up once and the
+    /// values interned in one pass. `None` without the layer; `Err` with the kind of a layer that
+    /// is not scalar, and nothing stored. Every slot lies below `end`.
+    pub fn set_scalar_attrs(
+        &mut self,
+        name: &str,
+        domain: Domain,
+        end: usize,
+        values: impl IntoIterator<Item = (usize, f64)>,
+    ) -> Option<Result<(), LayerKind>> {
+        self.attributes.set_scalars(name, domain, end, values)
+    }
+
     pub fn attr(&self, name: &str, domain: Domain, index: usize) -> Option<AttrValue> {
         self.attributes.layer(name, domain).map(|l| l.get(index))
     }

@@ -160,6 +160,72 @@ impl<T: PoolValue> Stored<T> {
         }
     }
 
+    /// Stores every `(slot, value)` in turn; reads then return what the same writes one at a
+    /// time would (the prefix grown to a slot past it only for a value other than `default`,
+    /// the layer's). A pooled layer interns the values exactly, in a map of the values this call
+    /// added, rather than through the cache of recent values: a NURBS grid's v parameters cycle
+    /// through more values than the cache holds, and there every miss adds an entry a
+    /// compaction must merge later (issue 38).
+    pub fn write_many(&mut self, default: T, writes: impl IntoIterator<Item = (usize, T)>) {
+        let past =
+            |len: usize, slot: usize, value: T| slot >= len && value.bits() == default.bits();
+        let mut writes = writes.into_iter();
+        let mut plain = match self {
+            Stored::Plain(v) => {
+                for (slot, value) in writes {
+                    if !past(v.len(), slot, value) {
+                        if slot >= v.len() {
+                            grow_to(v, slot + 1, default);
+                        }
+                        v[slot] = value;
+                    }
+                }
+                return;
+            }
+            Stored::Pooled(p) => {
+                let mut added = FxHashMap::default();
+                // The value written last and its index: a run of one value skips the map.
+                let mut last: Option<([u64; 3], u32)> = None;
+                loop {
+                    let Some((slot, value)) = writes.next() else {
+                        return;
+                    };
+                    if past(p.ids.len(), slot, value) {
+                        continue;
+                    }
+                    if slot >= p.ids.len() {
+                        p.ids.resize(slot + 1);
+                    }
+                    let bits = value.bits();
+                    let id = match last {
+                        Some((b, id)) if b == bits => Some(id),
+                        _ => p.intern_exact(value, &mut added),
+                    };
+                    match id {
+                        Some(id) => {
+                            p.ids.set(slot, id);
+                            last = Some((bits, id));
+                        }
+                        None => {
+                            let mut plain = p.to_plain();
+                            plain[slot] = value;
+                            break plain;
+                        }
+                    }
+                }
+            }
+        };
+        for (slot, value) in writes {
+            if !past(plain.len(), slot, value) {
+                if slot >= plain.len() {
+                    grow_to(&mut plain, slot + 1, default);
+                }
+                plain[slot] = value;
+            }
+        }
+        *self = Stored::Plain(plain);
+    }
+
     /// Slot `to` takes slot `from`'s value (both inside the prefix).
     pub fn copy(&mut self, from: usize, to: usize) {
         match self {
@@ -229,6 +295,15 @@ impl<T: PoolValue> Pooled<T> {
             self.last = cached;
             return Some(cached.id);
         }
+        let id = self.push_new(value)?;
+        self.recent[at] = Recent { bits, id };
+        self.last = Recent { bits, id };
+        Some(id)
+    }
+
+    /// Adds `value` as a new entry, compacting first when the table has grown to
+    /// `compact_at`; `None` when the layer should then be plain.
+    fn push_new(&mut self, value: T) -> Option<u32> {
         if self.values.len() >= self.compact_at {
             self.compact();
             // Plain once pooling no longer saves memory: indices of `w`
@@ -243,8 +318,25 @@ impl<T: PoolValue> Pooled<T> {
         }
         let id = u32::try_from(self.values.len()).ok()?;
         self.values.push(value);
-        self.recent[at] = Recent { bits, id };
-        self.last = Recent { bits, id };
+        Some(id)
+    }
+
+    /// The index of `value` for [`Stored::write_many`]: the default, or the one `added` maps it
+    /// to, or a new entry ([`Pooled::push_new`], which may compact: `added` then starts over);
+    /// `None` when the layer should be plain.
+    fn intern_exact(&mut self, value: T, added: &mut FxHashMap<[u64; 3], u32>) -> Option<u32> {
+        let bits = value.bits();
+        if bits == self.values[0].bits() {
+            return Some(0);
+        }
+        if let Some(&id) = added.get(&bits) {
+            return Some(id);
+        }
+        if self.values.len() >= self.compact_at {
+            added.clear();
+        }
+        let id = self.push_new(value)?;
+        added.insert(bits, id);
         Some(id)
     }
 
@@ -484,5 +576,70 @@ mod tests {
                 assert!(values(&s) <= (n / 2).max(MIN_POOL) + 1);
             }
         }
+    }
+
+    /// The slots and values `write_many` is given, in turn: runs of one value, values cycling
+    /// through `distinct`, and the default, over slots inside and past the prefix.
+    fn writes(distinct: u32, n: usize, seed: u64) -> Vec<(usize, i32)> {
+        let mut x = seed;
+        (0..n)
+            .map(|k| {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let value = match k % 7 {
+                    0 => -1,
+                    1 | 2 => 7,
+                    _ => ((x >> 40) as u32 % distinct) as i32,
+                };
+                ((x >> 33) as usize % (2 * n), value)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn many_writes_read_as_the_same_writes_one_at_a_time() {
+        for distinct in [3u32, 300, 5_000, 1_000_000] {
+            let n = 20_000;
+            let mut one = Stored::pooled(-1i32);
+            let mut many = Stored::pooled(-1i32);
+            // A prefix of n slots written first, then a run reaching past it.
+            for s in [&mut one, &mut many] {
+                s.extend_to(n, -1);
+                s.write(3, 9);
+            }
+            for round in 0..2u64 {
+                let run = writes(distinct, n, 99 + round);
+                for &(slot, value) in &run {
+                    if slot >= one.len() {
+                        if value == -1 {
+                            continue;
+                        }
+                        one.extend_to(slot + 1, -1);
+                    }
+                    one.write(slot, value);
+                }
+                many.write_many(-1, run);
+            }
+            assert_eq!(many.len(), one.len(), "{distinct}: the prefix grows alike");
+            for slot in 0..2 * n + 1 {
+                assert_eq!(
+                    many.get(slot),
+                    one.get(slot),
+                    "{distinct} distinct, slot {slot}"
+                );
+            }
+            if (distinct as usize) < MIN_POOL {
+                // The default, 9, and each call's 7 and values once.
+                let most = 2 + 2 * (distinct as usize + 1);
+                assert!(values(&many) <= most, "{distinct}: interned exactly");
+            }
+        }
+        // Values that never repeat turn the layer plain partway, and the rest still land.
+        let mut s = Stored::pooled(0u64);
+        s.write_many(0, (0..50_000).map(|k| (k, k as u64 + 1)));
+        assert!(matches!(s, Stored::Plain(_)));
+        assert!((0..50_000).all(|k| s.get(k) == Some(k as u64 + 1)));
+        assert_eq!(s.get(50_000), None);
     }
 }

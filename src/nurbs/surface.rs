@@ -59,6 +59,104 @@ pub struct SurfaceDerivs {
     pub svv: DVec3,
 }
 
+/// Grids of at least this many points are evaluated a row per task.
+const PARALLEL_GRID: usize = 1 << 15;
+
+/// What evaluating the rows of a grid `us × vs` needs: the surface and the basis tables of both
+/// axes (derivatives too when normals are wanted), built once.
+struct GridRows<'a> {
+    surface: &'a NurbsSurface,
+    us: &'a [f64],
+    vs: &'a [f64],
+    tu: BasisTable,
+    tv: BasisTable,
+}
+
+impl<'a> GridRows<'a> {
+    fn new(
+        surface: &'a NurbsSurface,
+        us: &'a [f64],
+        vs: &'a [f64],
+        normals: bool,
+    ) -> Result<Self, NurbsError> {
+        for &x in us.iter().chain(vs) {
+            if !x.is_finite() {
+                return Err(NurbsError::ParameterNotFinite { value: x });
+            }
+        }
+        let [p, q] = surface.degree;
+        let order = usize::from(normals);
+        Ok(GridRows {
+            surface,
+            us,
+            vs,
+            tu: BasisTable::new(&surface.knots_u, p, surface.size[0] - 1, us, order),
+            tv: BasisTable::new(&surface.knots_v, q, surface.size[1] - 1, vs, order),
+        })
+    }
+
+    /// Row `iu`'s points into `prow` (and unit normals into `nrow`, which needs the tables built
+    /// with normals). `scratch` holds the row's column sums C_j (and ∂C_j/∂u after them).
+    fn row(
+        &self,
+        iu: usize,
+        scratch: &mut Vec<DVec4>,
+        prow: &mut [[f64; 3]],
+        nrow: Option<&mut [[f64; 3]]>,
+    ) {
+        let s = self.surface;
+        let (p, q, m) = (s.degree[0], s.degree[1], s.size[1]);
+        let (tu, tv) = (&self.tu, &self.tv);
+        let span_u = tu.spans[iu];
+        let derivs = if nrow.is_some() { 2 } else { 1 };
+        scratch.clear();
+        scratch.resize(derivs * m, DVec4::ZERO);
+        for (k, out) in scratch.chunks_exact_mut(m).enumerate() {
+            for (ai, &bu) in tu.row(iu, k).iter().enumerate() {
+                let row = &s.net[(span_u - p + ai) * m..(span_u - p + ai + 1) * m];
+                for (cj, pw) in out.iter_mut().zip(row) {
+                    *cj += *pw * bu;
+                }
+            }
+        }
+        let (cols, cols_u) = scratch.split_at(m);
+        match nrow {
+            None => {
+                for (iv, out) in prow.iter_mut().enumerate() {
+                    let base = tv.spans[iv] - q;
+                    let mut h = DVec4::ZERO;
+                    for (bj, &bv) in tv.row(iv, 0).iter().enumerate() {
+                        h += cols[base + bj] * bv;
+                    }
+                    *out = project(h).to_array();
+                }
+            }
+            Some(nrow) => {
+                let [[a, b], [c, d]] = s.domain();
+                for (iv, (out, nout)) in prow.iter_mut().zip(nrow.iter_mut()).enumerate() {
+                    let base = tv.spans[iv] - q;
+                    let (b0, b1) = (tv.row(iv, 0), tv.row(iv, 1));
+                    let (mut h, mut hu, mut hv) = (DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
+                    for bj in 0..=q {
+                        h += cols[base + bj] * b0[bj];
+                        hu += cols_u[base + bj] * b0[bj];
+                        hv += cols[base + bj] * b1[bj];
+                    }
+                    let pt = h.truncate() / h.w;
+                    let su = (hu.truncate() - pt * hu.w) / h.w;
+                    let sv = (hv.truncate() - pt * hv.w) / h.w;
+                    *out = pt.to_array();
+                    let n = match unit_normal(su, sv) {
+                        Some(n) => n,
+                        None => s.fallback_normal(self.us[iu].clamp(a, b), self.vs[iv].clamp(c, d)),
+                    };
+                    *nout = n.to_array();
+                }
+            }
+        }
+    }
+}
+
 /// Points (and optionally unit normals) of a grid, row-major: index `iu * nv + iv`.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct GridSamples {
@@ -437,15 +535,7 @@ impl NurbsSurface {
     /// column j; then per v sample Σ_j N_j(v) C_j (decision D9). Rows run in parallel; every
     /// point is computed the same way at any thread count.
     pub fn grid(&self, us: &[f64], vs: &[f64], normals: bool) -> Result<GridSamples, NurbsError> {
-        for &x in us.iter().chain(vs) {
-            if !x.is_finite() {
-                return Err(NurbsError::ParameterNotFinite { value: x });
-            }
-        }
-        let [p, q] = self.degree;
-        let order = usize::from(normals);
-        let tu = BasisTable::new(&self.knots_u, p, self.size[0] - 1, us, order);
-        let tv = BasisTable::new(&self.knots_v, q, self.size[1] - 1, vs, order);
+        let rows = GridRows::new(self, us, vs, normals)?;
         let nv = vs.len();
         let total = us.len() * nv;
         let mut points = vec![[0.0; 3]; total];
@@ -454,103 +544,76 @@ impl NurbsSurface {
         } else {
             Vec::new()
         };
-        let [[a, b], [c, d]] = self.domain();
-        let clamp_u = |x: f64| x.clamp(a, b);
-        let clamp_v = |x: f64| x.clamp(c, d);
-        let row_job = |iu: usize, prow: &mut [[f64; 3]], nrow: Option<&mut [[f64; 3]]>| {
-            let m = self.size[1];
-            let span_u = tu.spans[iu];
-            let mut cols = vec![DVec4::ZERO; m];
-            let mut cols_u = if normals {
-                vec![DVec4::ZERO; m]
-            } else {
-                Vec::new()
-            };
-            let n0 = tu.row(iu, 0);
-            for (ai, &bu) in n0.iter().enumerate() {
-                let row = &self.net[(span_u - p + ai) * m..(span_u - p + ai + 1) * m];
-                for (cj, pw) in cols.iter_mut().zip(row) {
-                    *cj += *pw * bu;
-                }
-            }
-            if normals {
-                let n1 = tu.row(iu, 1);
-                for (ai, &bu) in n1.iter().enumerate() {
-                    let row = &self.net[(span_u - p + ai) * m..(span_u - p + ai + 1) * m];
-                    for (cj, pw) in cols_u.iter_mut().zip(row) {
-                        *cj += *pw * bu;
-                    }
-                }
-            }
-            match nrow {
-                None => {
-                    for (iv, out) in prow.iter_mut().enumerate() {
-                        let span_v = tv.spans[iv];
-                        let nvb = tv.row(iv, 0);
-                        let base = span_v - q;
-                        let mut h = DVec4::ZERO;
-                        for (bj, &bv) in nvb.iter().enumerate() {
-                            h += cols[base + bj] * bv;
-                        }
-                        *out = project(h).to_array();
-                    }
-                }
-                Some(nrow) => {
-                    for (iv, (out, nout)) in prow.iter_mut().zip(nrow.iter_mut()).enumerate() {
-                        let span_v = tv.spans[iv];
-                        let base = span_v - q;
-                        let (b0, b1) = (tv.row(iv, 0), tv.row(iv, 1));
-                        let (mut h, mut hu, mut hv) = (DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
-                        for bj in 0..=q {
-                            h += cols[base + bj] * b0[bj];
-                            hu += cols_u[base + bj] * b0[bj];
-                            hv += cols[base + bj] * b1[bj];
-                        }
-                        let s = h.truncate() / h.w;
-                        let su = (hu.truncate() - s * hu.w) / h.w;
-                        let sv = (hv.truncate() - s * hv.w) / h.w;
-                        *out = s.to_array();
-                        let n = match unit_normal(su, sv) {
-                            Some(n) => n,
-                            None => self.fallback_normal(clamp_u(us[iu]), clamp_v(vs[iv])),
-                        };
-                        *nout = n.to_array();
-                    }
-                }
-            }
-        };
         if nv == 0 {
             return Ok(GridSamples {
                 points,
                 normals: norms,
             });
         }
-        let parallel = total >= 1 << 15;
+        let parallel = total >= PARALLEL_GRID;
         if normals {
+            type Rows<'r> = (&'r mut [[f64; 3]], &'r mut [[f64; 3]]);
+            let job = |(iu, (pr, nr)): (usize, Rows)| rows.row(iu, &mut Vec::new(), pr, Some(nr));
             if parallel {
                 points
                     .par_chunks_mut(nv)
                     .zip(norms.par_chunks_mut(nv))
                     .enumerate()
-                    .for_each(|(iu, (pr, nr))| row_job(iu, pr, Some(nr)));
+                    .for_each(job);
             } else {
-                for (iu, (pr, nr)) in points.chunks_mut(nv).zip(norms.chunks_mut(nv)).enumerate() {
-                    row_job(iu, pr, Some(nr));
-                }
+                points
+                    .chunks_mut(nv)
+                    .zip(norms.chunks_mut(nv))
+                    .enumerate()
+                    .for_each(job);
             }
-        } else if parallel {
-            points
-                .par_chunks_mut(nv)
-                .enumerate()
-                .for_each(|(iu, pr)| row_job(iu, pr, None));
         } else {
-            for (iu, pr) in points.chunks_mut(nv).enumerate() {
-                row_job(iu, pr, None);
+            let job = |(iu, pr): (usize, &mut [[f64; 3]])| rows.row(iu, &mut Vec::new(), pr, None);
+            if parallel {
+                points.par_chunks_mut(nv).enumerate().for_each(job);
+            } else {
+                points.chunks_mut(nv).enumerate().for_each(job);
             }
         }
         Ok(GridSamples {
             points,
             normals: norms,
+        })
+    }
+
+    /// The largest `measure(iu, row)` over the rows of the grid `us × vs`, every row's points
+    /// computed as [`NurbsSurface::grid`] computes them but into a buffer of the task's own
+    /// that the next row reuses: the grid is never stored whole. A uniform tessellation's
+    /// deviation (spec §2.5 item 4) takes a maximum over five grids of a million points at 1000²;
+    /// storing them cost more in freshly touched memory than evaluating them (issue 38).
+    /// `0.0` for an empty grid; NaN measures are passed over, as `f64::max` does, so the result
+    /// does not depend on the order rows are taken in.
+    pub fn grid_rows_max(
+        &self,
+        us: &[f64],
+        vs: &[f64],
+        measure: impl Fn(usize, &[[f64; 3]]) -> f64 + Sync,
+    ) -> Result<f64, NurbsError> {
+        let rows = GridRows::new(self, us, vs, false)?;
+        let nv = vs.len();
+        if nv == 0 {
+            return Ok(0.0);
+        }
+        let scratch = || (Vec::new(), vec![[0.0; 3]; nv]);
+        let job = |(cols, row): &mut (Vec<DVec4>, Vec<[f64; 3]>), iu: usize| {
+            rows.row(iu, cols, row, None);
+            measure(iu, row)
+        };
+        Ok(if us.len() * nv >= PARALLEL_GRID {
+            (0..us.len())
+                .into_par_iter()
+                .map_init(scratch, job)
+                .reduce(|| 0.0, f64::max)
+        } else {
+            let mut buffers = scratch();
+            (0..us.len())
+                .map(|iu| job(&mut buffers, iu))
+                .fold(0.0, f64::max)
         })
     }
 

@@ -25,7 +25,7 @@ use thiserror::Error;
 
 pub use adaptive::{AdaptiveOptions, Combine, EdgeTest, Initial, TwoEdgeSplit};
 pub use set::tessellate_set;
-pub use uniform::predict_uniform;
+pub use uniform::{predict_uniform, uniform_grid, UniformGrid};
 
 use super::error::NurbsError;
 use super::mesh::TriMesh;

@@ -10,8 +10,6 @@
 //! is one vertex, and the triangles that collapse are dropped. Both are decided by
 //! [`Layout::key`], which the exact count ([`predict_uniform`]) and the build share.
 
-use rayon::prelude::*;
-
 use super::super::error::Dir;
 use super::super::mesh::TriMesh;
 use super::super::surface::NurbsSurface;
@@ -246,13 +244,23 @@ pub fn predict_uniform(
     Ok((vertices, layout.triangle_count()))
 }
 
-pub(crate) fn uniform(
+/// What a uniform tessellation fixes before sampling: cell counts, sample parameters, layout
+/// and the exact triangle count, checked against the caps.
+struct Plan {
+    cu: usize,
+    cv: usize,
+    us: Vec<f64>,
+    vs: Vec<f64>,
+    layout: Layout,
+    triangles: u128,
+}
+
+fn plan(
     surface: &NurbsSurface,
     cells: [usize; 2],
     per_patch: bool,
-    diagonal: Diagonal,
     max_triangles: usize,
-) -> Result<Tessellation, TessError> {
+) -> Result<Plan, TessError> {
     let (vertices, triangles) = predict_uniform(surface, cells, per_patch)?;
     if triangles > max_triangles as u128 {
         return Err(TessError::TriangleLimit {
@@ -272,22 +280,112 @@ pub(crate) fn uniform(
             params(surface, d, n, false)
         }
     };
-    let us = per(Dir::U, cu, cu);
-    let vs = per(Dir::V, cv, cv);
     let top = surface.topology();
-    let layout = Layout::new(cu, cv, [top.closed_u, top.closed_v], top.poles);
+    Ok(Plan {
+        cu,
+        cv,
+        us: per(Dir::U, cu, cu),
+        vs: per(Dir::V, cv, cv),
+        layout: Layout::new(cu, cv, [top.closed_u, top.closed_v], top.poles),
+        triangles,
+    })
+}
+
+/// A uniform tessellation with fixed diagonals whose grid has no seam and no pole, kept as the
+/// grid: vertex (i, j) is sample i·n_v + j, and cell (i, j), with corners a = (i, j),
+/// b = (i+1, j), c = (i+1, j+1), d = (i, j+1), is (a, b, c) and (a, c, d). It is the mesh
+/// [`super::tessellate`] gives, without its normals and triangle list: a caller that builds its
+/// own mesh from the grid in closed form needs neither, and at 1000² they are 48 MB written
+/// for nothing (issue 38).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UniformGrid {
+    /// S(u_i, v_j) in vertex order.
+    pub positions: Vec<[f64; 3]>,
+    /// The samples' parameters: vertex (i, j) lies at (us[i], vs[j]).
+    pub us: Vec<f64>,
+    pub vs: Vec<f64>,
+    /// As [`super::tessellate`] reports them.
+    pub stats: TessStats,
+}
+
+impl UniformGrid {
+    /// The triangles of [`super::tessellate`]'s mesh, cell by cell.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let nv = self.vs.len() as u32;
+        let (cu, cv) = (self.us.len() as u32 - 1, nv - 1);
+        (0..cu)
+            .flat_map(|i| (0..cv).map(move |j| i * nv + j))
+            .flat_map(|a| [[a, a + nv, a + nv + 1], [a, a + nv + 1, a + 1]])
+            .collect()
+    }
+
+    /// The (u, v) of every vertex.
+    pub fn uvs(&self) -> Vec<[f64; 2]> {
+        grid_uvs(&self.us, &self.vs)
+    }
+}
+
+/// The (u, v) of every sample of the grid `us × vs`, in vertex order.
+fn grid_uvs(us: &[f64], vs: &[f64]) -> Vec<[f64; 2]> {
+    us.iter()
+        .flat_map(|&u| vs.iter().map(move |&v| [u, v]))
+        .collect()
+}
+
+/// [`Mode::Uniform`](super::Mode::Uniform) with [`Diagonal::Fixed`] as its grid
+/// ([`UniformGrid`]); `None` when the grid has a seam or a pole ([`super::tessellate`] then).
+/// The errors are `tessellate`'s.
+pub fn uniform_grid(
+    surface: &NurbsSurface,
+    cells: [usize; 2],
+    per_patch: bool,
+    max_triangles: usize,
+) -> Result<Option<UniformGrid>, TessError> {
+    let plan = plan(surface, cells, per_patch, max_triangles)?;
+    if !plan.layout.plain {
+        return Ok(None);
+    }
+    let (us, vs) = (plan.us, plan.vs);
+    let positions = surface.grid(&us, &vs, false)?.points;
+    let max_deviation = grid_deviation(surface, &plan.layout, (&us, &vs), (&positions, None), &[])?;
+    let stats = TessStats {
+        triangles: plan.triangles as usize,
+        vertices: positions.len(),
+        max_deviation,
+        patch_levels: vec![[plan.cu as u32, plan.cv as u32]],
+        ..TessStats::default()
+    };
+    Ok(Some(UniformGrid {
+        positions,
+        us,
+        vs,
+        stats,
+    }))
+}
+
+pub(crate) fn uniform(
+    surface: &NurbsSurface,
+    cells: [usize; 2],
+    per_patch: bool,
+    diagonal: Diagonal,
+    max_triangles: usize,
+) -> Result<Tessellation, TessError> {
+    let Plan {
+        cu,
+        cv,
+        us,
+        vs,
+        layout,
+        triangles,
+    } = plan(surface, cells, per_patch, max_triangles)?;
     let grid = surface.grid(&us, &vs, true)?;
     let nv = vs.len();
     let (mut mesh, ids) = if layout.plain {
         // Every grid sample is its own vertex, in grid order: the samples become the mesh.
-        let uvs = us
-            .iter()
-            .flat_map(|&u| vs.iter().map(move |&v| [u, v]))
-            .collect();
         let mesh = TriMesh {
             positions: grid.points,
             normals: grid.normals,
-            uvs,
+            uvs: grid_uvs(&us, &vs),
             triangles: Vec::new(),
         };
         (mesh, (0..(us.len() * nv) as u32).collect())
@@ -329,7 +427,13 @@ pub(crate) fn uniform(
         }
     }
     debug_assert_eq!(mesh.triangles.len() as u128, triangles);
-    let max_deviation = grid_deviation(surface, &layout, &us, &vs, &ids, &mesh, &flip)?;
+    let max_deviation = grid_deviation(
+        surface,
+        &layout,
+        (&us, &vs),
+        (&mesh.positions, Some(&ids)),
+        &flip,
+    )?;
     Ok(Tessellation {
         mesh,
         stats: TessStats {
@@ -341,93 +445,87 @@ pub(crate) fn uniform(
 }
 
 /// The deviation of spec §2.5 item 4 for a grid mesh: triangle centroids and edge midpoints
-/// form five tensor grids (two centroid grids, u-edges, v-edges, diagonals), each evaluated
-/// with basis tables, so this costs about five grid evaluations instead of one point-by-point
-/// evaluation per sample.
+/// form five tensor grids (two centroid grids, u-edges, v-edges, diagonals; two more centroid
+/// grids where `Best` flipped a cell), each evaluated with basis tables, so this costs about
+/// five grid evaluations instead of one point-by-point evaluation per sample. Each grid is
+/// taken row by row ([`NurbsSurface::grid_rows_max`]) and never stored.
+///
+/// `ids` maps grid samples to vertices of `positions` (`None`: sample k is vertex k); `flip`
+/// marks the cells `Best` flipped (empty: none).
 fn grid_deviation(
     surface: &NurbsSurface,
     layout: &Layout,
-    us: &[f64],
-    vs: &[f64],
-    ids: &[u32],
-    mesh: &TriMesh,
+    (us, vs): (&[f64], &[f64]),
+    (positions, ids): (&[[f64; 3]], Option<&[u32]>),
     flip: &[bool],
 ) -> Result<f64, TessError> {
     use glam::DVec3;
-    let (cu, cv, nv) = (layout.cu, layout.cv, vs.len());
-    let pos = |i: usize, j: usize| DVec3::from_array(mesh.positions[ids[i * nv + j] as usize]);
+    let (cv, nv) = (layout.cv, vs.len());
+    let pos = |i: usize, j: usize| {
+        let k = i * nv + j;
+        DVec3::from_array(positions[ids.map_or(k, |ids| ids[k] as usize)])
+    };
+    let any_flip = flip.iter().any(|&f| f);
+    let flip = |i: usize, j: usize| any_flip && flip[i * cv + j];
     let mix = |a: &[f64], wa: f64, wb: f64| -> Vec<f64> {
         a.windows(2)
             .map(|w| (w[0] * wa + w[1] * wb) / (wa + wb))
             .collect()
     };
     let (u_mid, v_mid) = (mix(us, 1.0, 1.0), mix(vs, 1.0, 1.0));
-    let at = |g: &super::super::surface::GridSamples, i: usize, j: usize, n: usize| {
-        DVec3::from_array(g.points[i * n + j])
+    let far = |s: &[f64; 3], chord: DVec3| (DVec3::from_array(*s) - chord).length();
+    // Centroids of (a, b, c) and (a, c, d), or of (a, b, d) and (b, c, d) in flipped cells, as
+    // `corners` picks them from the cell's (a, b, c, d); `None` where the cell has no such
+    // triangle.
+    type Corners<'a> = &'a (dyn Fn(usize, usize) -> Option<[DVec3; 3]> + Sync);
+    let centroids = |u: Vec<f64>, v: Vec<f64>, corners: Corners| {
+        surface.grid_rows_max(&u, &v, |i, row| {
+            (0..cv)
+                .filter_map(|j| corners(i, j).map(|[x, y, z]| far(&row[j], (x + y + z) / 3.0)))
+                .fold(0.0, f64::max)
+        })
     };
-    // Rows in parallel; the maximum does not depend on the order.
-    let rows = |n: usize, row: &(dyn Fn(usize) -> f64 + Sync)| {
-        (0..n).into_par_iter().map(row).reduce(|| 0.0, f64::max)
-    };
-    // Centroids of (a, b, c) and (a, c, d), or of (a, b, d) and (b, c, d) in flipped cells.
-    let any_flip = flip.iter().any(|&f| f);
-    let g1 = surface.grid(&mix(us, 1.0, 2.0), &mix(vs, 2.0, 1.0), false)?;
-    let g2 = surface.grid(&mix(us, 2.0, 1.0), &mix(vs, 1.0, 2.0), false)?;
-    let (g3, g4) = if any_flip {
-        (
-            surface.grid(&mix(us, 2.0, 1.0), &mix(vs, 2.0, 1.0), false)?,
-            surface.grid(&mix(us, 1.0, 2.0), &mix(vs, 1.0, 2.0), false)?,
-        )
-    } else {
-        Default::default()
-    };
-    let mut worst = rows(cu, &|i| {
-        let mut worst = 0.0f64;
-        for j in 0..cv {
-            let (a, b, c, d) = (pos(i, j), pos(i + 1, j), pos(i + 1, j + 1), pos(i, j + 1));
-            if flip[i * cv + j] {
-                worst = worst.max((at(&g3, i, j, cv) - (a + b + d) / 3.0).length());
-                worst = worst.max((at(&g4, i, j, cv) - (b + c + d) / 3.0).length());
-                continue;
-            }
-            let [t1, t2] = layout.cell(i, j);
-            if t1.is_some() {
-                worst = worst.max((at(&g1, i, j, cv) - (a + b + c) / 3.0).length());
-            }
-            if t2.is_some() {
-                worst = worst.max((at(&g2, i, j, cv) - (a + c + d) / 3.0).length());
-            }
-        }
-        worst
-    });
-    drop((g1, g2, g3, g4));
-    let ge = surface.grid(&u_mid, vs, false)?;
-    worst = worst.max(rows(cu, &|i| {
+    let quad = |i: usize, j: usize| (pos(i, j), pos(i + 1, j), pos(i + 1, j + 1), pos(i, j + 1));
+    let mut worst = centroids(mix(us, 1.0, 2.0), mix(vs, 2.0, 1.0), &|i, j| {
+        let (a, b, c, _) = quad(i, j);
+        (!flip(i, j) && layout.cell(i, j)[0].is_some()).then_some([a, b, c])
+    })?;
+    worst = worst.max(centroids(mix(us, 2.0, 1.0), mix(vs, 1.0, 2.0), &|i, j| {
+        let (a, _, c, d) = quad(i, j);
+        (!flip(i, j) && layout.cell(i, j)[1].is_some()).then_some([a, c, d])
+    })?);
+    if any_flip {
+        worst = worst.max(centroids(mix(us, 2.0, 1.0), mix(vs, 2.0, 1.0), &|i, j| {
+            let (a, b, _, d) = quad(i, j);
+            flip(i, j).then_some([a, b, d])
+        })?);
+        worst = worst.max(centroids(mix(us, 1.0, 2.0), mix(vs, 1.0, 2.0), &|i, j| {
+            let (_, b, c, d) = quad(i, j);
+            flip(i, j).then_some([b, c, d])
+        })?);
+    }
+    worst = worst.max(surface.grid_rows_max(&u_mid, vs, |i, row| {
         (0..=cv)
-            .map(|j| (at(&ge, i, j, nv) - (pos(i, j) + pos(i + 1, j)) * 0.5).length())
+            .map(|j| far(&row[j], (pos(i, j) + pos(i + 1, j)) * 0.5))
             .fold(0.0, f64::max)
-    }));
-    drop(ge);
-    let ge = surface.grid(us, &v_mid, false)?;
-    worst = worst.max(rows(cu + 1, &|i| {
+    })?);
+    worst = worst.max(surface.grid_rows_max(us, &v_mid, |i, row| {
         (0..cv)
-            .map(|j| (at(&ge, i, j, cv) - (pos(i, j) + pos(i, j + 1)) * 0.5).length())
+            .map(|j| far(&row[j], (pos(i, j) + pos(i, j + 1)) * 0.5))
             .fold(0.0, f64::max)
-    }));
-    drop(ge);
-    let ge = surface.grid(&u_mid, &v_mid, false)?;
-    worst = worst.max(rows(cu, &|i| {
+    })?);
+    worst = worst.max(surface.grid_rows_max(&u_mid, &v_mid, |i, row| {
         (0..cv)
             .map(|j| {
-                let chord = if flip[i * cv + j] {
+                let chord = if flip(i, j) {
                     pos(i + 1, j) + pos(i, j + 1)
                 } else {
                     pos(i, j) + pos(i + 1, j + 1)
                 };
-                (at(&ge, i, j, cv) - chord * 0.5).length()
+                far(&row[j], chord * 0.5)
             })
             .fold(0.0, f64::max)
-    }));
+    })?);
     Ok(worst)
 }
 

@@ -381,6 +381,44 @@ fn grid_equals_pointwise_evaluation() {
 }
 
 #[test]
+fn grid_rows_max_equals_the_maximum_over_the_stored_grid() {
+    let s = common::peer_surface();
+    // 37 × 23 samples a row per call in turn; 250 × 180 (past 2^15) a row per task.
+    for (nu, nv) in [(37usize, 23usize), (250, 180)] {
+        let us: Vec<f64> = (0..nu).map(|k| k as f64 / (nu - 1) as f64).collect();
+        let vs: Vec<f64> = (0..nv)
+            .map(|k| (k as f64 / (nv - 1) as f64).powi(2))
+            .collect();
+        let g = s.grid(&us, &vs, false).unwrap();
+        let target = DVec3::new(0.3, -0.2, 0.1);
+        // Each sample's distance to a point, weighted by its row so rows differ.
+        let measure = |i: usize, row: &[[f64; 3]]| {
+            row.iter()
+                .map(|p| (DVec3::from_array(*p) - target).length() * (1.0 + i as f64))
+                .fold(0.0, f64::max)
+        };
+        let stored = g
+            .points
+            .chunks(nv)
+            .enumerate()
+            .map(|(i, row)| measure(i, row))
+            .fold(0.0, f64::max);
+        let streamed = s.grid_rows_max(&us, &vs, measure).unwrap();
+        assert_eq!(streamed.to_bits(), stored.to_bits(), "{nu} × {nv}");
+        assert!(stored > 0.0);
+        // The row handed to `measure` is the stored grid's row, bit for bit.
+        let same = s
+            .grid_rows_max(&us, &vs, |i, row| {
+                f64::from(u8::from(row != &g.points[i * nv..(i + 1) * nv]))
+            })
+            .unwrap();
+        assert_eq!(same, 0.0, "{nu} × {nv}: a row differs");
+    }
+    assert_eq!(s.grid_rows_max(&[0.5], &[], |_, _| 1.0).unwrap(), 0.0);
+    assert!(s.grid_rows_max(&[f64::NAN], &[0.5], |_, _| 1.0).is_err());
+}
+
+#[test]
 fn example_115_matches_geomdl() {
     let s = common::example_115();
     for r in EX115 {

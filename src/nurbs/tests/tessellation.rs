@@ -4,8 +4,8 @@ use super::common;
 
 use crate::nurbs::surface::NurbsSurface;
 use crate::nurbs::tess::{
-    predict_uniform, tessellate, AdaptiveOptions, Combine, Diagonal, EdgeTest, Initial, Mode,
-    TessError, TwoEdgeSplit,
+    predict_uniform, tessellate, uniform_grid, AdaptiveOptions, Combine, Diagonal, EdgeTest,
+    Initial, Mode, TessError, TwoEdgeSplit,
 };
 
 const CAP: usize = 2_000_000;
@@ -238,6 +238,49 @@ fn uniform_count_is_predicted_and_the_cap_refuses_before_building() {
         CAP,
     );
     assert!(matches!(r, Err(TessError::TriangleLimit { .. })));
+}
+
+#[test]
+fn uniform_grid_is_the_uniform_mesh_without_normals_and_triangle_list() {
+    let mut grids = 0;
+    for (name, s, _) in fixtures() {
+        for (cells, per_patch) in [
+            ([4, 6], false),
+            ([3, 2], true),
+            ([1, 1], false),
+            ([200, 190], false),
+        ] {
+            let mode = Mode::Uniform {
+                cells,
+                per_patch,
+                diagonal: Diagonal::Fixed,
+            };
+            let t = tessellate(&s, &mode, CAP).unwrap();
+            let top = s.topology();
+            let plain = !(top.closed_u || top.closed_v || top.poles.iter().any(|&p| p));
+            let Some(g) = uniform_grid(&s, cells, per_patch, CAP).unwrap() else {
+                assert!(!plain, "{name} {cells:?}: a plain grid is kept as one");
+                continue;
+            };
+            assert!(plain, "{name} {cells:?}: seams and poles need the mesh");
+            grids += 1;
+            let bits = |p: &[[f64; 3]]| -> Vec<[u64; 3]> {
+                p.iter().map(|p| p.map(f64::to_bits)).collect()
+            };
+            assert_eq!(
+                bits(&g.positions),
+                bits(&t.mesh.positions),
+                "{name} {cells:?}"
+            );
+            assert_eq!(g.uvs(), t.mesh.uvs, "{name} {cells:?}");
+            assert_eq!(g.triangles(), t.mesh.triangles, "{name} {cells:?}");
+            assert_eq!(g.stats, t.stats, "{name} {cells:?}");
+            let (_, tris) = predict_uniform(&s, cells, per_patch).unwrap();
+            let refused = uniform_grid(&s, cells, per_patch, tris as usize - 1);
+            assert!(matches!(refused, Err(TessError::TriangleLimit { .. })));
+        }
+    }
+    assert_eq!(grids, 8, "peer and example_115, four sizes each");
 }
 
 #[test]
