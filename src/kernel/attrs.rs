@@ -239,8 +239,7 @@ impl Layer {
     }
 
     /// Stores scalar values, slot by slot, as [`Layer::set`] would one at a time, but in one pass
-    /// over the storage ([`Stored::write_many`]). Every slot lies below `end`: room for the
-    /// prefix to reach it is reserved once.
+    /// over the storage ([`Stored::write_many`]). Every slot lies below `end`.
     fn set_scalars(
         &mut self,
         end: usize,
@@ -251,8 +250,7 @@ impl Layer {
         else {
             return Err(self.kind());
         };
-        stored.reserve_growth(end.saturating_sub(stored.len()));
-        stored.write_many(default, values);
+        stored.write_many(default, end, values);
         Ok(())
     }
 
@@ -518,7 +516,15 @@ mod tests {
             .unwrap();
         assert_eq!(many, one);
         let u = many.layer("u", Domain::Vert).unwrap();
-        assert_eq!(u.len(), 3010, "a default past the prefix is not stored");
+        assert_eq!(u.len(), 5001, "grown to the end at once");
+        assert_eq!(u.get(4000), AttrValue::Scalar(0.5));
+        // Only defaults past the prefix store nothing.
+        let mut defaults = Attributes::default();
+        defaults
+            .add_layer("u", Domain::Vert, AttrValue::Scalar(0.5))
+            .unwrap();
+        defaults.set_scalars("u", Domain::Vert, 100, (0..100).map(|k| (k, 0.5)));
+        assert!(defaults.layer("u", Domain::Vert).unwrap().is_empty());
         assert_eq!(u.get(12), AttrValue::Scalar(-1.0));
         assert_eq!(u.get(11), AttrValue::Scalar(0.25));
         // Another kind's layer refuses and keeps its values; a missing layer is `None`.
