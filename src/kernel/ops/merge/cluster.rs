@@ -1,7 +1,13 @@
 //! Clustering points within a distance (deterministic: the lowest index
 //! represents each cluster, whatever order pairs are found in).
 
+use rayon::prelude::*;
+
 use super::*;
+
+/// Points per parallel task in the passes that read every point once
+/// (cell keys, the gather): below this a task costs more than it saves.
+const PARALLEL_CHUNK: usize = 4096;
 
 /// Up to this many points [`cluster_roots`] compares every pair.
 pub(super) const SMALL_CLUSTER_INPUT: usize = 24;
@@ -10,7 +16,7 @@ pub(super) const SMALL_CLUSTER_INPUT: usize = 24;
 /// place ([`VertPoints`]), so a merge of a million vertices does not first
 /// copy their 24 MB of positions (issue 38: the memory a step touches for
 /// the first time is much of its cost).
-pub(in crate::kernel::ops) trait Points {
+pub(in crate::kernel::ops) trait Points: Sync {
     fn count(&self) -> usize;
     fn point(&self, i: usize) -> DVec3;
 }
@@ -120,13 +126,7 @@ pub(super) fn grid_roots<P: Points + ?Sized>(points: &P, distance: f64) -> Vec<u
             cell_coordinate(p.z, distance),
         ]
     };
-    let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
-    for c in each(points).map(cell) {
-        for axis in 0..3 {
-            low[axis] = low[axis].min(c[axis]);
-            high[axis] = high[axis].max(c[axis]);
-        }
-    }
+    let (low, high) = cell_bounds(points, distance);
     // Bits per axis for coordinates shifted to 1..=span+1, so that a
     // neighbour step (±1) never leaves its bit field: span + 2 < 2^bits.
     let bits: Vec<u32> = (0..3)
@@ -138,9 +138,13 @@ pub(super) fn grid_roots<P: Points + ?Sized>(points: &P, distance: f64) -> Vec<u
     if bits.iter().sum::<u32>() <= 64 {
         // Fast path: the cell packed into one u64 (x | y | z).
         let (shift_y, shift_x) = (bits[2], bits[1] + bits[2]);
-        let keys: Vec<u64> = each(points)
-            .map(|p| {
-                let c = cell(p);
+        // Each key is a pure function of its point: computed in parallel,
+        // collected in index order.
+        let keys: Vec<u64> = (0..points.count())
+            .into_par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map(|i| {
+                let c = cell(points.point(i));
                 let field = |axis: usize| (c[axis] - low[axis] + 1) as u64;
                 field(0) << shift_x | field(1) << shift_y | field(2)
             })
@@ -168,6 +172,42 @@ pub(super) fn grid_roots<P: Points + ?Sized>(points: &P, distance: f64) -> Vec<u
     }
 }
 
+/// The lowest and highest cell coordinates of `points` on each axis.
+///
+/// `floor(x / distance)` never decreases as `x` grows (division by a
+/// positive number and the floor are both monotone), so the extreme cells
+/// are the cells of the extreme coordinates: a min/max over the
+/// coordinates and six divisions, not three divisions a point. A NaN
+/// coordinate (whose cell, 0, need not lie between the others') falls
+/// back to taking every point's cell.
+fn cell_bounds<P: Points + ?Sized>(points: &P, distance: f64) -> ([i64; 3], [i64; 3]) {
+    let (mut least, mut most) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    let mut nan = false;
+    for p in each(points) {
+        nan |= p.is_nan();
+        least = least.min(p);
+        most = most.max(p);
+    }
+    let cell = |p: DVec3| {
+        [
+            cell_coordinate(p.x, distance),
+            cell_coordinate(p.y, distance),
+            cell_coordinate(p.z, distance),
+        ]
+    };
+    if !nan {
+        return (cell(least), cell(most));
+    }
+    let (mut low, mut high) = ([i64::MAX; 3], [i64::MIN; 3]);
+    for c in each(points).map(cell) {
+        for axis in 0..3 {
+            low[axis] = low[axis].min(c[axis]);
+            high[axis] = high[axis].max(c[axis]);
+        }
+    }
+    (low, high)
+}
+
 /// `floor(x / distance)` as an integer. `as` saturates: absurdly far points
 /// share an end cell, which only costs comparisons, never correctness (real
 /// distances are checked). Truncation plus a correction instead of
@@ -179,29 +219,73 @@ pub(in crate::kernel::ops) fn cell_coordinate(x: f64, distance: f64) -> i64 {
 
 /// Sorts `keys` (of `bits` significant bits), returning the sorted keys
 /// and, for each, its original index; equal keys stay in index order.
-/// Least significant digit first, in passes of at most 12 bits: each pass
-/// is stable, so starting from index order the result is ordered by
-/// (key, index). Linear whatever the keys' spread; the digit counts of
-/// every pass are taken in one read of the keys.
+///
+/// A large input, given two threads or more, is sorted as two halves at
+/// once, then merged taking the lower half first on equal keys: the result
+/// is the one stable order by (key, index), however many threads ran.
 pub(super) fn radix_sort(keys: Vec<u64>, bits: u32) -> (Vec<u64>, Vec<u32>) {
-    const MAX_DIGIT: u32 = 12;
-    let passes = bits.div_ceil(MAX_DIGIT) as usize;
+    let n = keys.len();
     let mut keys = keys;
-    let mut order: Vec<u32> = (0..keys.len() as u32).collect();
-    if passes == 0 {
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    if bits.div_ceil(MAX_DIGIT) == 0 {
         return (keys, order);
     }
+    let (mut keys_to, mut order_to) = (vec![0u64; n], vec![0u32; n]);
+    // One thread sorts the whole (the halves' merge would be a pass for
+    // nothing); the order is the same either way.
+    if n < PARALLEL_SORT || rayon::current_num_threads() < 2 {
+        if radix_passes([&mut keys, &mut keys_to], [&mut order, &mut order_to], bits) {
+            return (keys_to, order_to);
+        }
+        return (keys, order);
+    }
+    let mid = n / 2;
+    let (keys_low, keys_high) = keys.split_at_mut(mid);
+    let (to_low, to_high) = keys_to.split_at_mut(mid);
+    let (order_low, order_high) = order.split_at_mut(mid);
+    let (order_to_low, order_to_high) = order_to.split_at_mut(mid);
+    let (moved, _) = rayon::join(
+        || radix_passes([keys_low, to_low], [order_low, order_to_low], bits),
+        || radix_passes([keys_high, to_high], [order_high, order_to_high], bits),
+    );
+    // Both halves took the same number of passes: both sit in the same
+    // pair of buffers. Merge them into the other pair.
+    if moved {
+        merge_halves(&keys_to, &order_to, mid, &mut keys, &mut order);
+        (keys, order)
+    } else {
+        merge_halves(&keys, &order, mid, &mut keys_to, &mut order_to);
+        (keys_to, order_to)
+    }
+}
+
+/// Digits of at most this many bits: 4,096 counters stay in the cache.
+const MAX_DIGIT: u32 = 12;
+
+/// From this many keys [`radix_sort`] sorts two halves at once.
+const PARALLEL_SORT: usize = 1 << 16;
+
+/// Least significant digit first, in passes of at most [`MAX_DIGIT`]
+/// bits, back and forth between `keys[0]`/`order[0]` (the input) and
+/// `keys[1]`/`order[1]`: each pass is stable, so starting from index order
+/// the result is ordered by (key, index). Linear whatever the keys'
+/// spread; the digit counts of every pass are taken in one read of the
+/// keys. Returns whether the result ended in the second pair (an odd
+/// number of passes).
+fn radix_passes(keys: [&mut [u64]; 2], order: [&mut [u32]; 2], bits: u32) -> bool {
+    let passes = bits.div_ceil(MAX_DIGIT) as usize;
+    let [mut keys, mut keys_to] = keys;
+    let [mut order, mut order_to] = order;
     // Equal digit widths: 34 bits sort in three passes of 12, 12 and 10.
     let digit = bits.div_ceil(passes as u32);
     let buckets = 1usize << digit;
     let mask = buckets as u64 - 1;
     let mut counts = vec![0usize; passes * buckets];
-    for &k in &keys {
+    for &k in keys.iter() {
         for pass in 0..passes {
             counts[pass * buckets + ((k >> (pass as u32 * digit)) & mask) as usize] += 1;
         }
     }
-    let (mut keys_to, mut order_to) = (vec![0u64; keys.len()], vec![0u32; keys.len()]);
     for pass in 0..passes {
         let shift = pass as u32 * digit;
         let next = &mut counts[pass * buckets..(pass + 1) * buckets];
@@ -211,7 +295,7 @@ pub(super) fn radix_sort(keys: Vec<u64>, bits: u32) -> (Vec<u64>, Vec<u32>) {
             *count = total;
             total += c;
         }
-        for (&k, &i) in keys.iter().zip(&order) {
+        for (&k, &i) in keys.iter().zip(order.iter()) {
             let slot = &mut next[((k >> shift) & mask) as usize];
             keys_to[*slot] = k;
             order_to[*slot] = i;
@@ -220,7 +304,27 @@ pub(super) fn radix_sort(keys: Vec<u64>, bits: u32) -> (Vec<u64>, Vec<u32>) {
         std::mem::swap(&mut keys, &mut keys_to);
         std::mem::swap(&mut order, &mut order_to);
     }
-    (keys, order)
+    passes % 2 == 1
+}
+
+/// Merges the sorted runs `..mid` and `mid..` of `keys`/`order` into
+/// `keys_to`/`order_to`, the first run winning ties (its indices are the
+/// lower ones).
+fn merge_halves(
+    keys: &[u64],
+    order: &[u32],
+    mid: usize,
+    keys_to: &mut [u64],
+    order_to: &mut [u32],
+) {
+    let (mut a, mut b) = (0, mid);
+    for (key_to, index_to) in keys_to.iter_mut().zip(order_to.iter_mut()) {
+        let take_a = b == keys.len() || (a < mid && keys[a] <= keys[b]);
+        let from = if take_a { &mut a } else { &mut b };
+        *key_to = keys[*from];
+        *index_to = order[*from];
+        *from += 1;
+    }
 }
 
 /// Whether `a` and `b` are at most `distance` apart. Uses the hardware
@@ -260,17 +364,23 @@ pub(super) fn gathered_roots<K: Copy + Ord, P: Points + ?Sized>(
     distance: f64,
     step: impl Fn(K, [i64; 3]) -> K,
 ) -> Vec<u32> {
-    let gathered: Vec<DVec3> = order.iter().map(|&i| points.point(i as usize)).collect();
+    let gathered: Vec<DVec3> = order
+        .par_iter()
+        .with_min_len(PARALLEL_CHUNK)
+        .map(|&i| points.point(i as usize))
+        .collect();
     let mut sets = UnionFind::new(order.len());
     sweep(sorted_cells, &gathered, distance, &mut sets, step);
+    // The copy goes before the tables below are made: a lower peak.
+    drop(gathered);
+    let gathered_roots = sets.into_roots();
     let mut lowest = vec![u32::MAX; order.len()];
-    for (k, &i) in order.iter().enumerate() {
-        let root = sets.find(k as u32) as usize;
-        lowest[root] = lowest[root].min(i);
+    for (&root, &i) in gathered_roots.iter().zip(order) {
+        lowest[root as usize] = lowest[root as usize].min(i);
     }
     let mut roots = vec![0u32; order.len()];
-    for (k, &i) in order.iter().enumerate() {
-        roots[i as usize] = lowest[sets.find(k as u32) as usize];
+    for (&root, &i) in gathered_roots.iter().zip(order) {
+        roots[i as usize] = lowest[root as usize];
     }
     roots
 }

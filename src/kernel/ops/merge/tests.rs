@@ -22,6 +22,22 @@ fn merge_all(m: &mut Mesh, distance: f64) -> Result<MergeResult, OpError> {
     merge_by_distance(m, &verts, distance)
 }
 
+/// An n × n grid of unit squares as a soup: two triangles a square, each
+/// with three vertices of its own (6n² corners on (n + 1)² sites).
+fn triangle_soup(n: i32) -> Mesh {
+    let mut m = Mesh::new();
+    for j in 0..n {
+        for i in 0..n {
+            let p = |di: i32, dj: i32| v3(f64::from(i + di), f64::from(j + dj), 0.0);
+            for tri in [[p(0, 0), p(1, 0), p(1, 1)], [p(0, 0), p(1, 1), p(0, 1)]] {
+                let vs: Vec<VertId> = tri.iter().map(|&q| m.make_vert(q)).collect();
+                m.make_face(&vs).unwrap();
+            }
+        }
+    }
+    m
+}
+
 type Fingerprint = (
     Vec<(VertId, [f64; 3])>,
     Vec<(EdgeId, [VertId; 2])>,
@@ -535,17 +551,7 @@ fn merge_a_million_points_in_linear_time() {
     m.validate().unwrap();
 
     // A welded triangle soup: 2·300² triangles, 1.08M corners.
-    let mut m = Mesh::new();
-    let n = 300;
-    for j in 0..n {
-        for i in 0..n {
-            let p = |di: i32, dj: i32| v3(f64::from(i + di), f64::from(j + dj), 0.0);
-            for tri in [[p(0, 0), p(1, 0), p(1, 1)], [p(0, 0), p(1, 1), p(0, 1)]] {
-                let vs: Vec<VertId> = tri.iter().map(|&q| m.make_vert(q)).collect();
-                m.make_face(&vs).unwrap();
-            }
-        }
-    }
+    let mut m = triangle_soup(300);
     let verts = all_verts(&m);
     let start = std::time::Instant::now();
     let r = merge_by_distance(&mut m, &verts, 1e-6).unwrap();
@@ -560,13 +566,14 @@ fn merge_a_million_points_in_linear_time() {
 }
 
 /// The radix sort orders by (key, index) for every key width, repeated
-/// keys included.
+/// keys included; 100,001 keys on two threads take the two-halves path
+/// (an odd split).
 #[test]
 fn radix_sort_orders_by_key_then_index() {
     use super::cluster::radix_sort;
     let mut rng = Rng(41);
     for bits in [0u32, 1, 5, 12, 13, 34, 63, 64] {
-        for len in [0usize, 1, 7, 1000] {
+        for len in [0usize, 1, 7, 1000, 100_001] {
             let mask = if bits == 64 {
                 u64::MAX
             } else {
@@ -584,9 +591,69 @@ fn radix_sort_orders_by_key_then_index() {
                 .collect();
             let mut want: Vec<(u64, u32)> = keys.iter().copied().zip(0u32..).collect();
             want.sort_unstable();
-            let (sorted, order) = radix_sort(keys, bits);
-            let got: Vec<(u64, u32)> = sorted.into_iter().zip(order).collect();
-            assert_eq!(got, want, "{bits} bits, {len} keys");
+            // One thread sorts the whole; two sort halves and merge them.
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let (sorted, order) = pool.install(|| radix_sort(keys.clone(), bits));
+                let got: Vec<(u64, u32)> = sorted.into_iter().zip(order).collect();
+                assert_eq!(got, want, "{bits} bits, {len} keys, {threads} threads");
+            }
         }
     }
+}
+
+/// A weld big enough to take every parallel path (the two-halves sort,
+/// the parallel face passes) gives the same mesh, ids included, on one
+/// thread as on several.
+#[test]
+fn a_large_soup_welds_the_same_on_one_thread_as_on_several() {
+    let welded = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut m = triangle_soup(120);
+            let r = merge_all(&mut m, 1e-6).unwrap();
+            m.validate().unwrap();
+            (fingerprint(&m), r)
+        })
+    };
+    let (one, r) = welded(1);
+    assert_eq!(r.merged, 6 * 120 * 120 - 121 * 121);
+    assert_eq!(
+        (one.0.len(), one.2.len(), r.faces_removed),
+        (121 * 121, 2 * 120 * 120, 0)
+    );
+    assert_eq!(welded(3), (one, r));
+}
+
+/// Welded twins are decided in order: a face whose only twin was itself
+/// killed as a twin of a third face stays (issue 38: the search runs in
+/// parallel, and the faces it finds are asked again as they are killed).
+#[test]
+fn a_twin_killed_as_a_twin_no_longer_removes_another() {
+    let mut m = Mesh::new();
+    let a = m.make_vert(v3(0.0, 0.0, 0.0));
+    let b = m.make_vert(v3(1.0, 0.0, 0.0));
+    let c = m.make_vert(v3(1.0, 1.0, 0.0));
+    let d = m.make_vert(v3(0.0, 1.0, 0.0));
+    // A copy of `a`: every face below holds it, so every face is touched
+    // by the weld and kept whole (clean).
+    let a2 = m.make_vert(v3(0.0, 0.0, 0.0));
+    // After the weld all three have the vertex set {a, b, c, d}.
+    let h = m.make_face(&[b, d, a2, c]).unwrap();
+    let g = m.make_face(&[b, d, c, a2]).unwrap();
+    let f = m.make_face(&[a2, b, c, d]).unwrap();
+    assert!(h < g && g < f);
+    let r = merge_all(&mut m, 1e-9).unwrap();
+    m.validate().unwrap();
+    // h is the lowest: kept. g finds h on its first edge b–d: killed. f's
+    // first edge a–b holds g but not h, so with g gone f has no twin.
+    assert_eq!(m.face_ids().collect::<Vec<_>>(), [h, f]);
+    assert_eq!((r.merged, r.faces_removed), (1, 1));
+    assert_eq!(m.face_verts(f).collect::<Vec<_>>(), [a, b, c, d]);
 }

@@ -1,7 +1,14 @@
 //! Welding clustered vertices: the topology rewrite through Euler
 //! operators (faces that shrink, repeat a vertex or coincide are repaired).
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
 use super::*;
+
+/// Faces per parallel task in the weld's read-only passes.
+const PARALLEL_CHUNK: usize = 1024;
 
 /// A degenerate face, recorded before it is killed.
 pub(super) struct Degenerate {
@@ -60,23 +67,27 @@ pub(in crate::kernel::ops) fn weld_gone(
     let mut degenerate = Vec::new();
     if !affected.is_empty() {
         let map = SurvivorMap::new(mesh.vert_capacity(), &gone);
-        let mut ring: Vec<VertId> = Vec::new();
-        let mut sorted: Vec<VertId> = Vec::new();
-        for &f in &affected {
-            ring.clear();
-            ring.extend(mesh.face_verts(f).map(|v| map.get(v)));
-            sorted.clear();
-            sorted.extend_from_slice(&ring);
-            sorted.sort_unstable();
-            if sorted.windows(2).any(|w| w[0] == w[1]) {
+        // Each face's fate is a pure function of its ring: decided in
+        // parallel, gathered in `affected` order.
+        let view: &Mesh = mesh;
+        let repeats: Vec<bool> = affected
+            .par_iter()
+            .with_min_len(PARALLEL_CHUNK)
+            .map_init(Vec::new, |sorted, &f| {
+                sorted.clear();
+                sorted.extend(view.face_verts(f).map(|v| map.get(v)));
+                sorted.sort_unstable();
+                sorted.windows(2).any(|w| w[0] == w[1])
+            })
+            .collect();
+        for (&f, repeats) in affected.iter().zip(repeats) {
+            if repeats {
                 let attrs = face_layers
                     .iter()
                     .filter_map(|name| mesh.attr(name, Domain::Face, f.index()))
                     .collect();
-                degenerate.push(Degenerate {
-                    ring: ring.clone(),
-                    attrs,
-                });
+                let ring = mesh.face_verts(f).map(|v| map.get(v)).collect();
+                degenerate.push(Degenerate { ring, attrs });
             } else {
                 clean.push(f);
             }
@@ -96,20 +107,33 @@ pub(in crate::kernel::ops) fn weld_gone(
         if mesh.vert_degree(v) == 0 {
             mesh.kill_vert(v)?;
         } else {
-            mesh.glue_verts_deferring_normals(keep, v)?;
+            mesh.glue_verts_sharing_no_face(keep, v)?;
         }
     }
     // Each surviving face that lost a corner to a glue, refreshed once.
-    for &f in &clean {
-        mesh.refresh_normal(f);
-    }
+    mesh.refresh_normals_of(&clean);
     // Step 3: welded twins.
+    // Killing a face only takes twins away, so a face with no twin on the
+    // glued mesh has none when its turn comes: the search runs in
+    // parallel on the glued mesh, and only the faces it finds are asked
+    // again, ascending, as they are killed (a twin found then may have
+    // been killed as a twin of another face, so the answer can change).
     let is_affected = |g: FaceId| affected.binary_search(&g).is_ok();
-    let mut ring: Vec<VertId> = Vec::new();
-    for &f in &clean {
+    let has_twin = |mesh: &Mesh, ring: &mut Vec<VertId>, f: FaceId| {
         ring.clear();
         ring.extend(mesh.face_verts(f));
-        if twin(mesh, &ring, |g| g != f && (!is_affected(g) || g < f)).is_some() {
+        twin(mesh, ring, |g| g != f && (!is_affected(g) || g < f)).is_some()
+    };
+    let view: &Mesh = mesh;
+    let maybe_doubled: Vec<FaceId> = clean
+        .par_iter()
+        .with_min_len(PARALLEL_CHUNK)
+        .map_init(Vec::new, |ring, &f| has_twin(view, ring, f).then_some(f))
+        .flatten()
+        .collect();
+    let mut ring: Vec<VertId> = Vec::new();
+    for f in maybe_doubled {
+        if has_twin(mesh, &mut ring, f) {
             mesh.kill_face(f)?;
             result.faces_removed += 1;
         }
@@ -243,16 +267,19 @@ fn faces_around(mesh: &Mesh, gone: &[(VertId, VertId)]) -> Vec<FaceId> {
         found.dedup();
         return found;
     }
-    let mut marked = vec![false; capacity];
-    for &(v, _) in gone {
-        for f in mesh.vert_faces(v) {
-            marked[f.index()] = true;
-        }
-    }
+    // Marked in parallel: the marks are a set, whatever order they land in.
+    let marked: Vec<AtomicBool> = (0..capacity).map(|_| AtomicBool::new(false)).collect();
+    gone.par_iter()
+        .with_min_len(PARALLEL_CHUNK)
+        .for_each(|&(v, _)| {
+            for f in mesh.vert_faces(v) {
+                marked[f.index()].store(true, Ordering::Relaxed);
+            }
+        });
     marked
         .iter()
         .enumerate()
-        .filter(|(_, &m)| m)
+        .filter(|(_, m)| m.load(Ordering::Relaxed))
         .map(|(i, _)| FaceId::from_index(i))
         .collect()
 }
