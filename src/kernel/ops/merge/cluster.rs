@@ -357,12 +357,12 @@ pub(super) const FORWARD_ROWS: [(i64, i64, i64, i64); 5] = [
 /// then maps the clusters back: for each input point, the lowest input
 /// index of its cluster. Gathering first turns the pair tests' scattered
 /// reads into sequential ones (most of the cost at a million points).
-pub(super) fn gathered_roots<K: Copy + Ord, P: Points + ?Sized>(
+pub(super) fn gathered_roots<K: Copy + Ord + Sync, P: Points + ?Sized>(
     sorted_cells: &[K],
     order: &[u32],
     points: &P,
     distance: f64,
-    step: impl Fn(K, [i64; 3]) -> K,
+    step: impl Fn(K, [i64; 3]) -> K + Sync,
 ) -> Vec<u32> {
     let gathered: Vec<DVec3> = order
         .par_iter()
@@ -389,12 +389,18 @@ pub(super) fn gathered_roots<K: Copy + Ord, P: Points + ?Sized>(
 /// `sorted_cells[k]` is the cell of point `k`, ascending; `step` moves a
 /// cell key by a cell offset, preserving order (lexicographic x, y, z), so
 /// each row cursor only ever moves forward.
-pub(super) fn sweep<K: Copy + Ord>(
+///
+/// Given two threads and enough points, the cells are swept as two runs
+/// at once: the second run's pairs join sets of its own over the points
+/// from its first one on (every pair it finds lies there: neighbours are
+/// looked for forward only), merged into `sets` after. The pairs found are
+/// the same, so are the sets.
+pub(super) fn sweep<K: Copy + Ord + Sync>(
     sorted_cells: &[K],
     points: &[DVec3],
     distance: f64,
     sets: &mut UnionFind,
-    step: impl Fn(K, [i64; 3]) -> K,
+    step: impl Fn(K, [i64; 3]) -> K + Sync,
 ) {
     // Runs of equal keys: cell c holds points start[c]..start[c + 1].
     let mut keys: Vec<K> = Vec::new();
@@ -406,41 +412,95 @@ pub(super) fn sweep<K: Copy + Ord>(
         }
     }
     start.push(sorted_cells.len());
-    let link = |sets: &mut UnionFind, i: usize, j: usize| {
-        // Same set already is the common case inside a cluster, and cheaper.
-        let (a, b) = (i as u32, j as u32);
-        if sets.find(a) != sets.find(b) && within(points[i], points[j], distance) {
-            sets.union(a, b);
-        }
+    let grid = Cells {
+        keys: &keys,
+        start: &start,
+        points,
+        distance,
+        step: &step,
     };
-
-    let mut cursors = [0usize; FORWARD_ROWS.len()];
-    for (c, &key) in keys.iter().enumerate() {
-        let here = start[c]..start[c + 1];
-        for i in here.clone() {
-            for j in i + 1..here.end {
-                link(sets, i, j);
-            }
+    if points.len() < PARALLEL_SWEEP || rayon::current_num_threads() < 2 {
+        grid.sweep(0..keys.len(), sets, 0);
+        return;
+    }
+    // The cell where the second half of the points begins.
+    let mid = start.partition_point(|&s| s < points.len() / 2);
+    let offset = start[mid];
+    let mut upper = UnionFind::new(points.len() - offset);
+    rayon::join(
+        || grid.sweep(0..mid, sets, 0),
+        || grid.sweep(mid..keys.len(), &mut upper, offset),
+    );
+    for (k, root) in upper.into_roots().into_iter().enumerate() {
+        if root as usize != k {
+            sets.union((offset + k) as u32, offset as u32 + root);
         }
-        for (row, &(dx, dy, z_low, z_high)) in FORWARD_ROWS.iter().enumerate() {
-            let first = step(key, [dx, dy, z_low]);
-            let last = step(key, [dx, dy, z_high]);
-            let cursor = &mut cursors[row];
-            while *cursor < keys.len() && keys[*cursor] < first {
-                *cursor += 1;
+    }
+}
+
+/// From this many points [`sweep`] runs two halves of the cells at once.
+const PARALLEL_SWEEP: usize = 1 << 16;
+
+/// The occupied cells of a sweep, in order, and the points they hold.
+struct Cells<'a, K, S> {
+    keys: &'a [K],
+    start: &'a [usize],
+    points: &'a [DVec3],
+    distance: f64,
+    step: &'a S,
+}
+
+impl<K: Copy + Ord, S: Fn(K, [i64; 3]) -> K> Cells<'_, K, S> {
+    /// Links the pairs found from the cells `cells` (each with itself and
+    /// its forward neighbours) in `sets`, which numbers point `i` as
+    /// `i - offset`.
+    fn sweep(&self, cells: std::ops::Range<usize>, sets: &mut UnionFind, offset: usize) {
+        let (keys, start, points) = (self.keys, self.start, self.points);
+        let link = |sets: &mut UnionFind, i: usize, j: usize| {
+            // Same set already is the common case inside a cluster, and cheaper.
+            let (a, b) = ((i - offset) as u32, (j - offset) as u32);
+            if sets.find(a) != sets.find(b) && within(points[i], points[j], self.distance) {
+                sets.union(a, b);
             }
-            let mut d = *cursor;
-            while d < keys.len() && keys[d] <= last {
-                // Only a saturated key (coordinates near ±2⁶³ cells) can
-                // land on the cell itself or behind it.
-                if d > c {
-                    for i in here.clone() {
-                        for j in start[d]..start[d + 1] {
-                            link(sets, i, j);
+        };
+        // Each row's cursor starts at the first cell at or past the row's
+        // first neighbour of the first cell, as a sweep from cell 0 would
+        // have left it.
+        let mut cursors = FORWARD_ROWS.map(|(dx, dy, z_low, _)| match cells.clone().next() {
+            Some(c) => {
+                let first = (self.step)(keys[c], [dx, dy, z_low]);
+                keys.partition_point(|&k| k < first)
+            }
+            None => 0,
+        });
+        for c in cells {
+            let key = keys[c];
+            let here = start[c]..start[c + 1];
+            for i in here.clone() {
+                for j in i + 1..here.end {
+                    link(sets, i, j);
+                }
+            }
+            for (row, &(dx, dy, z_low, z_high)) in FORWARD_ROWS.iter().enumerate() {
+                let first = (self.step)(key, [dx, dy, z_low]);
+                let last = (self.step)(key, [dx, dy, z_high]);
+                let cursor = &mut cursors[row];
+                while *cursor < keys.len() && keys[*cursor] < first {
+                    *cursor += 1;
+                }
+                let mut d = *cursor;
+                while d < keys.len() && keys[d] <= last {
+                    // Only a saturated key (coordinates near ±2⁶³ cells) can
+                    // land on the cell itself or behind it.
+                    if d > c {
+                        for i in here.clone() {
+                            for j in start[d]..start[d + 1] {
+                                link(sets, i, j);
+                            }
                         }
                     }
+                    d += 1;
                 }
-                d += 1;
             }
         }
     }

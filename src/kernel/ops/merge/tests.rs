@@ -657,3 +657,51 @@ fn a_twin_killed_as_a_twin_no_longer_removes_another() {
     assert_eq!((r.merged, r.faces_removed), (1, 1));
     assert_eq!(m.face_verts(f).collect::<Vec<_>>(), [a, b, c, d]);
 }
+
+/// Clustering enough points to take the two-runs sweep (and the two-halves
+/// sort) on two threads gives the roots of the one-thread sweep, with
+/// chains of points that cross from one run into the other.
+#[test]
+fn clusters_are_the_same_on_one_thread_as_on_two() {
+    let mut rng = Rng(5);
+    let distance = 0.01;
+    let mut points: Vec<DVec3> = Vec::new();
+    // Sites repeated with jitter below the distance: small clusters.
+    for _ in 0..20_000 {
+        let site = v3(rng.unit(), rng.unit(), rng.unit());
+        for _ in 0..4 {
+            points.push(site + v3(rng.unit(), rng.unit(), rng.unit()) * (distance / 4.0));
+        }
+    }
+    // Chains 0.9 · distance apart along each axis, through every cell
+    // boundary and the middle of the points: each one cluster.
+    let mut chain: Vec<Option<usize>> = vec![None; points.len()];
+    for (c, axis) in [DVec3::X, DVec3::Y, DVec3::Z].into_iter().enumerate() {
+        let origin = v3(rng.unit(), rng.unit(), rng.unit()) * 0.5;
+        points.extend((0..500).map(|i| origin + axis * (0.9 * distance * f64::from(i))));
+        chain.extend([Some(c)].repeat(500));
+    }
+    // Shuffled, so the lowest index of a cluster is anywhere in it.
+    for i in (1..points.len()).rev() {
+        let j = (rng.next() % (i as u64 + 1)) as usize;
+        points.swap(i, j);
+        chain.swap(i, j);
+    }
+    let roots = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| cluster_roots(&points[..], distance))
+    };
+    let one = roots(1);
+    assert_eq!(roots(2), one);
+    for c in 0..3 {
+        let mut chain_roots: Vec<u32> = (0..points.len())
+            .filter(|&i| chain[i] == Some(c))
+            .map(|i| one[i])
+            .collect();
+        chain_roots.dedup();
+        assert_eq!(chain_roots.len(), 1, "chain {c}");
+    }
+}
