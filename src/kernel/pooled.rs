@@ -175,17 +175,22 @@ impl<T: PoolValue> Stored<T> {
     ) {
         let past =
             |len: usize, slot: usize, value: T| slot >= len && value.bits() == default.bits();
+        // The writes into a plain vector: those from the start, or those
+        // left once a pooled layer has turned plain.
+        let write_plain = |v: &mut Vec<T>, writes: &mut dyn Iterator<Item = (usize, T)>| {
+            for (slot, value) in writes {
+                if !past(v.len(), slot, value) {
+                    if slot >= v.len() {
+                        grow_to(v, end.max(slot + 1), default);
+                    }
+                    v[slot] = value;
+                }
+            }
+        };
         let mut writes = writes.into_iter();
         let mut plain = match self {
             Stored::Plain(v) => {
-                for (slot, value) in writes {
-                    if !past(v.len(), slot, value) {
-                        if slot >= v.len() {
-                            grow_to(v, end.max(slot + 1), default);
-                        }
-                        v[slot] = value;
-                    }
-                }
+                write_plain(v, &mut writes);
                 return;
             }
             Stored::Pooled(p) => {
@@ -221,14 +226,7 @@ impl<T: PoolValue> Stored<T> {
                 }
             }
         };
-        for (slot, value) in writes {
-            if !past(plain.len(), slot, value) {
-                if slot >= plain.len() {
-                    grow_to(&mut plain, end.max(slot + 1), default);
-                }
-                plain[slot] = value;
-            }
-        }
+        write_plain(&mut plain, &mut writes);
         *self = Stored::Plain(plain);
     }
 

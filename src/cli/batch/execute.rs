@@ -74,6 +74,9 @@ struct Artifacts {
     stats: Option<String>,
     thumbnail: Option<crate::preview::Image>,
     record: Record,
+    /// The kernel mesh, once nothing reads it: freed while the files are
+    /// written ([`produce`]), not before.
+    retired: crate::kernel::Mesh,
 }
 
 /// The manifest facts of a made variant (kept in the cache beside its
@@ -359,6 +362,24 @@ fn produce(plan: &Plan, v: &Variant) -> Produced {
         }
     };
     let mut artifacts = artifacts;
+    // Returning a large kernel mesh's pages to the system takes about as
+    // long as writing its file (issue 38): the two run at once. A small
+    // mesh is freed in less time than handing it to another thread takes.
+    let retired = std::mem::take(&mut artifacts.retired);
+    if retired.loop_count() < FREE_ALONGSIDE {
+        drop(retired);
+        return timed(keep_and_land(plan, v, artifacts));
+    }
+    let (produced, ()) = rayon::join(|| keep_and_land(plan, v, artifacts), || drop(retired));
+    timed(produced)
+}
+
+/// Corners (loops) from which a made variant's kernel mesh is freed on
+/// another thread while its files are written.
+const FREE_ALONGSIDE: usize = 1 << 16;
+
+/// Stores a made variant in the cache (when there is one) and lands it.
+fn keep_and_land(plan: &Plan, v: &Variant, mut artifacts: Artifacts) -> Produced {
     if let (Some(cache), Some(key)) = (&plan.cache, &v.cache_key) {
         let sha = sha256_of(&artifacts.mesh);
         // The cache stores one buffer: a file handed over in parts is
@@ -385,10 +406,10 @@ fn produce(plan: &Plan, v: &Variant) -> Produced {
             let mut p = land(plan, v, artifacts, Source::Made);
             p.warnings
                 .push(format!("--cache: cannot store variant {}: {e}", v.index));
-            return timed(p);
+            return p;
         }
     }
-    timed(land(plan, v, artifacts, Source::Made))
+    land(plan, v, artifacts, Source::Made)
 }
 
 /// An earlier run's entry, if every file it lists is still there with its
@@ -472,6 +493,7 @@ fn restore(plan: &Plan, v: &Variant) -> Option<Artifacts> {
         stats,
         thumbnail,
         record,
+        retired: crate::kernel::Mesh::default(),
     })
 }
 
@@ -539,10 +561,12 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
             let encoded = if gltf {
                 let glb = format == MeshFormat::Glb;
                 let planned = crate::io::gltf::Planned::new(&view, &look, glb).map_err(failed)?;
-                // The primitives hold all the file needs: the mesh goes
-                // before the file is allocated.
+                // The primitives hold all the file needs. A GLB hands them
+                // over as they are, so the mesh may wait to be freed while
+                // the file is written; a `.gltf` allocates its base64 text,
+                // so the mesh goes first.
                 drop(view);
-                if !want_stats {
+                if !want_stats && !glb {
                     result.mesh = crate::kernel::Mesh::default();
                 }
                 crate::cli::Encoded {
@@ -620,6 +644,7 @@ fn make(plan: &Plan, v: &Variant, started: Instant) -> Result<Artifacts, ErrorEn
             },
             warnings: result.warnings.clone(),
         },
+        retired: std::mem::take(&mut result.mesh),
     })
 }
 

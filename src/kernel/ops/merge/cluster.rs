@@ -412,7 +412,7 @@ pub(super) fn sweep<K: Copy + Ord + Sync>(
         }
     }
     start.push(sorted_cells.len());
-    let grid = Cells {
+    let grid = SweepGrid {
         keys: &keys,
         start: &start,
         points,
@@ -442,7 +442,7 @@ pub(super) fn sweep<K: Copy + Ord + Sync>(
 const PARALLEL_SWEEP: usize = 1 << 16;
 
 /// The occupied cells of a sweep, in order, and the points they hold.
-struct Cells<'a, K, S> {
+struct SweepGrid<'a, K, S> {
     keys: &'a [K],
     start: &'a [usize],
     points: &'a [DVec3],
@@ -450,7 +450,7 @@ struct Cells<'a, K, S> {
     step: &'a S,
 }
 
-impl<K: Copy + Ord, S: Fn(K, [i64; 3]) -> K> Cells<'_, K, S> {
+impl<K: Copy + Ord, S: Fn(K, [i64; 3]) -> K> SweepGrid<'_, K, S> {
     /// Links the pairs found from the cells `cells` (each with itself and
     /// its forward neighbours) in `sets`, which numbers point `i` as
     /// `i - offset`.
