@@ -167,17 +167,17 @@ impl<T: PoolValue> Stored<T> {
     /// added, rather than through the cache of recent values: a NURBS grid's v parameters cycle
     /// through more values than the cache holds, and there every miss adds an entry a
     /// compaction must merge later (issue 38).
-    pub fn write_many(
+    pub fn write_many<I: IntoIterator<Item = (usize, T)>>(
         &mut self,
         default: T,
         end: usize,
-        writes: impl IntoIterator<Item = (usize, T)>,
+        writes: I,
     ) {
         let past =
             |len: usize, slot: usize, value: T| slot >= len && value.bits() == default.bits();
         // The writes into a plain vector: those from the start, or those
         // left once a pooled layer has turned plain.
-        let write_plain = |v: &mut Vec<T>, writes: &mut dyn Iterator<Item = (usize, T)>| {
+        let write_plain = |v: &mut Vec<T>, writes: &mut I::IntoIter| {
             for (slot, value) in writes {
                 if !past(v.len(), slot, value) {
                     if slot >= v.len() {
