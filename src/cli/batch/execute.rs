@@ -74,8 +74,8 @@ struct Artifacts {
     stats: Option<String>,
     thumbnail: Option<crate::preview::Image>,
     record: Record,
-    /// The kernel mesh, once nothing reads it: freed while the files are
-    /// written ([`produce`]), not before.
+    /// The kernel mesh, once nothing reads it: [`produce`] frees a large
+    /// one while the files are written, a small one before.
     retired: crate::kernel::Mesh,
 }
 
