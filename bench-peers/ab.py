@@ -8,7 +8,9 @@ same machine state, hour and load), checks that both wrote the same bytes,
 and prints the median wall time of each and their ratio. The
 workloads are the ones issue 34 names: a 1000² grid, a million faces
 extruded one by one, a GLB of a million triangles (also as PLY, STL and
-OBJ: glb-ply, glb-stl, glb-obj), a 1,000-variant batch.
+OBJ: glb-ply, glb-stl, glb-obj), a 1,000-variant batch; and the suite's
+soup import with weld and merge (weld, merge: run `make bench-peers` once
+first, which writes the soup).
 Standard library only; outputs go to a temporary folder (tmpfs when
 /dev/shm exists, so disk speed does not enter).
 """
@@ -25,6 +27,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
+INPUTS = ROOT / "target" / "bench-peers" / "inputs"
 GRID = "[start]\ngrid = {{ segments = [{n}, {m}], size = [{n}, {m}] }}\n"
 TRIANGLES = GRID.format(n=500, m=1000) + "[[step]]\ntriangulate = {}\n"
 
@@ -41,17 +44,21 @@ WORKLOADS = {
     "glb-stl": (TRIANGLES, "out.stl", []),
     "glb-obj": (TRIANGLES, "out.obj", []),
     "batch": (
-        None,
+        ROOT / "rules" / "house.toml",
         "b/{seed}.glb",
         ["--seeds", "0..1000", "-j2", "-q"],
     ),
+    # The suite's soup of a million corners (`make bench-peers` writes it
+    # first): imported and welded, or imported and then merged.
+    "weld": (INPUTS / "weld.toml", "out.ply", []),
+    "merge": (INPUTS / "merge.toml", "out.ply", []),
 }
 
 
 def run(binary, workload, scratch):
     text, output, extra = WORKLOADS[workload]
-    if text is None:
-        rules = str(ROOT / "rules" / "house.toml")
+    if isinstance(text, Path):
+        rules = str(text)
     else:
         rules = str(scratch / f"{workload}.toml")
         Path(rules).write_text(text)
