@@ -104,7 +104,7 @@ pub(in crate::kernel::ops) fn weld_gone(
     // Step 2: glue (never refused: see the module overview). An isolated
     // vertex carries nothing to glue: killing it is the same, and cheaper.
     for &(v, keep) in &gone {
-        if mesh.vert_degree(v) == 0 {
+        if mesh.vert_edges(v).next().is_none() {
             mesh.kill_vert(v)?;
         } else {
             mesh.glue_verts_sharing_no_face(keep, v)?;
@@ -129,7 +129,7 @@ pub(in crate::kernel::ops) fn weld_gone(
         .par_iter()
         .with_min_len(PARALLEL_CHUNK)
         .map_init(Vec::new, |ring, &f| has_twin(view, ring, f).then_some(f))
-        .flatten()
+        .flatten_iter()
         .collect();
     let mut ring: Vec<VertId> = Vec::new();
     for f in maybe_doubled {
