@@ -530,3 +530,58 @@ fn large_variants_land_the_same_while_their_mesh_is_freed_alongside() {
         );
     }
 }
+
+/// The manifest records each imported file's SHA-256, which the load now
+/// computes on a second core while the file is decoded (`load_inputs`):
+/// the same hash at one thread and at two, and a malformed file is still
+/// refused with its place in the rule file.
+#[test]
+fn a_manifest_records_the_hash_of_each_imported_file_at_any_thread_count() {
+    use sha2::{Digest, Sha256};
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n";
+    std::fs::write(dir.path().join("quad.obj"), mesh).unwrap();
+    std::fs::write(
+        dir.path().join("r.toml"),
+        "[start]\nimport = { path = \"quad.obj\" }\n[[step]]\nextrude_region = { offset = [0, 0, 1] }\n",
+    )
+    .unwrap();
+    let expected: String = Sha256::digest(mesh.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    for threads in ["1", "2"] {
+        let out = format!("t{threads}");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_graftal"))
+            .current_dir(dir.path())
+            .env("RAYON_NUM_THREADS", threads)
+            .args([
+                "run",
+                "r.toml",
+                "--seeds",
+                "0..2",
+                "-o",
+                &format!("{out}/{{seed}}.ply"),
+                "-q",
+            ])
+            .output()
+            .unwrap();
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let manifest: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.path().join(&out).join("manifest.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(manifest["inputs"][0]["path"], "quad.obj");
+        assert_eq!(manifest["inputs"][0]["sha256"], expected.as_str());
+    }
+    std::fs::write(dir.path().join("quad.obj"), "v 0 0 0\nf 1 2 9\n").unwrap();
+    let o = graftal_in(dir.path(), &["run", "r.toml", "-o", "bad.ply", "-q"]);
+    assert_ne!(code(&o), 0);
+    assert!(stderr(&o).contains("r.toml:2:"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("cannot import `quad.obj`"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("bad.ply").exists());
+}
