@@ -261,7 +261,7 @@ fn quickhull(points: &[DVec3], candidates: &[u32]) -> Result<Vec<Face>, HullErro
             continue;
         }
         let candidate = Candidate { p: p(i), i };
-        if let Some(f) = (0..4).find(|&f| faces[f].plane.sees(points, candidate.p)) {
+        if let Some(f) = (0..4).find(|&f| faces[f].plane.sees(points, &candidate.p)) {
             lists.lists[faces[f].outside as usize].push(candidate);
         }
     }
@@ -282,6 +282,8 @@ fn quickhull(points: &[DVec3], candidates: &[u32]) -> Result<Vec<Face>, HullErro
     let mut made: Vec<(u32, Plane, u32)> = Vec::new();
     let mut from: Vec<(u32, u32)> = Vec::new(); // (start vertex, new face)
     let mut to: Vec<(u32, u32)> = Vec::new(); // (end vertex, new face)
+    let mut orphans: Vec<Candidate> = Vec::new(); // the visible faces' outside points
+    let mut taken: Vec<Candidate> = Vec::new(); // those a new face sees
     let mut mark: Vec<u32> = Vec::with_capacity(faces.capacity());
     mark.resize(4, 0);
     let mut round = 0u32;
@@ -316,7 +318,7 @@ fn quickhull(points: &[DVec3], candidates: &[u32]) -> Result<Vec<Face>, HullErro
             let g = visible[k] as usize;
             k += 1;
             for n in faces[g].next {
-                if mark[n as usize] != round && faces[n as usize].plane.sees(points, eye.p) {
+                if mark[n as usize] != round && faces[n as usize].plane.sees(points, &eye.p) {
                     mark[n as usize] = round;
                     visible.push(n);
                 }
@@ -391,29 +393,44 @@ fn quickhull(points: &[DVec3], candidates: &[u32]) -> Result<Vec<Face>, HullErro
             faces[*g as usize].next[2] = face_at(&to, s)?;
         }
         // The visible faces' points go to the first new face that sees
-        // them; the rest are inside now.
+        // them; the rest are inside now. Each new face in turn takes what
+        // it sees of what is left, so the lists are the ones a search for
+        // each point's first seeing face makes, and no test branches on
+        // its outcome (issue 38: that search, 4 tests a point with one
+        // unpredictable exit, was a third of the hull of 10⁴ points on a
+        // sphere).
+        orphans.clear();
         for &g in &visible {
             let face = &mut faces[g as usize];
             face.alive = false;
             let list = std::mem::replace(&mut face.outside, NO_LIST);
-            if list == NO_LIST {
-                continue;
+            if list != NO_LIST {
+                let points = lists.lists[list as usize].iter();
+                orphans.extend(points.filter(|c| c.i != eye.i));
+                lists.give_back(list);
             }
-            let orphans = std::mem::take(&mut lists.lists[list as usize]);
-            for &c in &orphans {
-                if c.i == eye.i {
-                    continue;
-                }
-                let q = c.p;
-                if let Some(new) = made.iter_mut().find(|(_, plane, _)| plane.sees(points, q)) {
-                    if new.2 == NO_LIST {
-                        new.2 = lists.take();
-                    }
-                    lists.lists[new.2 as usize].push(c);
-                }
+        }
+        if taken.len() < orphans.len() {
+            taken.resize(orphans.len(), orphans[0]);
+        }
+        for (_, plane, list) in made.iter_mut() {
+            if orphans.is_empty() {
+                break;
             }
-            lists.lists[list as usize] = orphans;
-            lists.give_back(list);
+            let (mut kept, mut took) = (0, 0);
+            for k in 0..orphans.len() {
+                let sees = plane.sees(points, &orphans[k].p);
+                let c = orphans[k];
+                taken[took] = c;
+                orphans[kept] = c;
+                took += usize::from(sees);
+                kept += usize::from(!sees);
+            }
+            orphans.truncate(kept);
+            if took > 0 {
+                *list = lists.take();
+                lists.lists[*list as usize].extend_from_slice(&taken[..took]);
+            }
         }
         for (g, _, list) in &made {
             faces[*g as usize].outside = *list;
@@ -532,11 +549,22 @@ impl Plane {
     /// Whether point `p` is strictly outside the plane: exactly, as
     /// `orient3d(a, b, c, p) < 0`, decided in float where the filter
     /// can ([`Plane::side_in_float`]). Most tests end in the filter.
-    fn sees(&self, points: &[DVec3], p: DVec3) -> bool {
-        match self.side_in_float(p) {
+    ///
+    /// `p` by reference, and the exact test out of line: a point passed
+    /// by value to the predicate's call was copied to the stack in two
+    /// stores and read back across them, a store-forwarding stall on
+    /// every test (issue 38: a quarter of Quickhull's time on a sphere).
+    fn sees(&self, points: &[DVec3], p: &DVec3) -> bool {
+        match self.side_in_float(*p) {
             Some(side) => side < 0.0,
-            None => self.orient(points, p) < 0.0,
+            None => self.orient_exactly(points, p) < 0.0,
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn orient_exactly(&self, points: &[DVec3], p: &DVec3) -> f64 {
+        self.orient(points, *p)
     }
 
     /// `orient3d(a, b, c, p)`, exactly.
