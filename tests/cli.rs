@@ -183,6 +183,11 @@ fn bad_rule_files_give_located_errors_exit_2_and_no_output() {
             message: "no earlier step is named `nowhere`",
         },
         BadCase {
+            file: "from-start.toml",
+            location: "from-start.toml:5:9",
+            message: "the start shape is not a step `from` can name",
+        },
+        BadCase {
             file: "unknown-operator.toml",
             location: "unknown-operator.toml:5:1",
             message: "did you mean `extrude_faces`?",

@@ -496,7 +496,14 @@ impl Expander<'_, '_> {
                         let names: Vec<&str> = earlier.iter().map(|(n, _)| n.as_str()).collect();
                         return Err(c
                             .error(span, format!("no earlier step is named `{}`", f.value))
-                            .with_help(if names.is_empty() {
+                            .with_help(if f.value == "start" {
+                                // What a user reaches for to delete an imported
+                                // mesh after a hull of it (stop 57's try).
+                                "the start shape is not a step `from` can name: make it a \
+                                 named step (`[[step]]` with `name = \"input\"` and its \
+                                 create operator) and write `from = \"input\"`"
+                                    .to_owned()
+                            } else if names.is_empty() {
                                 "`from` names an earlier step of the same list; this is the first"
                                     .to_owned()
                             } else {
