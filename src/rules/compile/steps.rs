@@ -497,8 +497,8 @@ impl Expander<'_, '_> {
                         return Err(c
                             .error(span, format!("no earlier step is named `{}`", f.value))
                             .with_help(if f.value == "start" {
-                                // What a user reaches for to delete an imported
-                                // mesh after a hull of it (stop 57's try).
+                                // What a user writes first to delete an imported
+                                // mesh after taking its convex hull.
                                 "the start shape is not a step `from` can name: make it a \
                                  named step (`[[step]]` with `name = \"input\"` and its \
                                  create operator) and write `from = \"input\"`"
