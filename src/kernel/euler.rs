@@ -608,9 +608,50 @@ impl Mesh {
         loops: [LoopId; 4],
         along_0_2: bool,
     ) -> (FaceId, EdgeId, bool) {
+        let corners = loops.map(|l| self.position(self.lp(l).vert));
+        let normals = Self::quad_piece_normals(&corners, along_0_2);
+        self.split_quad_with_normals(f, loops, along_0_2, normals)
+    }
+
+    /// The stored normals [`Mesh::split_quad`] gives its two pieces (the
+    /// face kept, then the new one), from the quad's corner positions in
+    /// ring order: each piece's corners are taken from its first loop on,
+    /// as `compute_face_normal` reads them, so the bits are the same.
+    /// `triangulate` computes them in its parallel pass over the quads,
+    /// which has the corners at hand (issue 38: a second pass walked
+    /// every piece's loops again to refresh them).
+    pub(in crate::kernel) fn quad_piece_normals(
+        corners: &[DVec3; 4],
+        along_0_2: bool,
+    ) -> [DVec3; 2] {
+        let [c0, c1, c2, c3] = *corners;
+        // Along 0–2: f is 0 1 2 from corner 0, g is 0 2 3 from its
+        // closing loop. Along 1–3: f is 0 1 3 from corner 0, g is 1 2 3
+        // from corner 1 (see `split_quad_unrefreshed`).
+        if along_0_2 {
+            [normal_of(&[c0, c1, c2]), normal_of(&[c0, c2, c3])]
+        } else {
+            [normal_of(&[c0, c1, c3]), normal_of(&[c1, c2, c3])]
+        }
+    }
+
+    /// [`Mesh::split_quad`] storing the pieces' normals the caller computed
+    /// with [`Mesh::quad_piece_normals`] from the corners of `loops`.
+    pub(in crate::kernel) fn split_quad_with_normals(
+        &mut self,
+        f: FaceId,
+        loops: [LoopId; 4],
+        along_0_2: bool,
+        normals: [DVec3; 2],
+    ) -> (FaceId, EdgeId, bool) {
         let split = self.split_quad_unrefreshed(f, loops, along_0_2);
-        self.refresh_normal(f);
-        self.refresh_normal(split.0);
+        self.face_mut(f).normal = normals[0];
+        self.face_mut(split.0).normal = normals[1];
+        debug_assert_eq!(
+            [f, split.0].map(|face| self.compute_face_normal(face).to_array().map(f64::to_bits)),
+            normals.map(|n| n.to_array().map(f64::to_bits)),
+            "the normals given are the pieces' own"
+        );
         split
     }
 

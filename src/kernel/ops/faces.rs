@@ -129,10 +129,11 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
     let mut diagonals: Vec<((u32, u32), EdgeId)> = Vec::new();
     // Each quad's diagonal, decided in parallel (a pure function of its
     // corners and its stored normal, fresh by construction: the one
-    // `ring_triangles` picks, without gathering the ring); its pieces'
-    // normals are refreshed in one parallel pass at the end.
+    // `ring_triangles` picks, without gathering the ring), with its
+    // pieces' normals from the same corners. Only a quad left undecided
+    // has its pieces refreshed, in one parallel pass at the end.
     let view: &Mesh = mesh;
-    let plans: Vec<Option<([LoopId; 4], Option<bool>)>> = faces
+    let plans: Vec<Option<QuadPlan>> = faces
         .par_iter()
         .with_min_len(1024)
         .map(|&f| {
@@ -140,14 +141,16 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
             let corners = loops.map(|l| view.position(view.loop_vert(l)));
             let normal = view.face_normal(f);
             let normal = (normal != DVec3::ZERO).then_some(normal);
-            Some((loops, polygon::quad_split_along_0_2(&corners, normal)))
+            let decided = polygon::quad_split_along_0_2(&corners, normal)
+                .map(|along_0_2| (along_0_2, Mesh::quad_piece_normals(&corners, along_0_2)));
+            Some((loops, decided))
         })
         .collect();
     let quads = plans.iter().filter(|plan| plan.is_some()).count();
-    let mut split = Vec::with_capacity(2 * quads);
+    let mut unrefreshed = Vec::new();
     result.faces.reserve(2 * quads);
     result.edges.reserve(quads);
-    // Every split quad gets its normals back even if a later face fails.
+    // The undecided quads split so far get their normals even if a later face fails.
     let split_all = || -> Result<(), OpError> {
         for (f, plan) in faces.into_iter().zip(plans) {
             if let Some((loops, decided)) = plan {
@@ -157,17 +160,23 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
                 // the new face gets its third, and both start at its first
                 // corner, listed as a rebuild would list them. Only a quad
                 // neither diagonal splits well takes the general path.
-                let along_0_2 = decided.unwrap_or_else(|| {
-                    let corners = loops.map(|l| mesh.position(mesh.loop_vert(l)));
-                    ring_triangles(&corners, &mut triangles);
-                    triangles.contains(&[0, 1, 2])
-                });
-                let (g, e, made) = mesh.split_quad_unrefreshed(f, loops, along_0_2);
+                let (g, e, made) = match decided {
+                    Some((along_0_2, normals)) => {
+                        mesh.split_quad_with_normals(f, loops, along_0_2, normals)
+                    }
+                    None => {
+                        let corners = loops.map(|l| mesh.position(mesh.loop_vert(l)));
+                        ring_triangles(&corners, &mut triangles);
+                        let along_0_2 = triangles.contains(&[0, 1, 2]);
+                        let (g, e, made) = mesh.split_quad_unrefreshed(f, loops, along_0_2);
+                        unrefreshed.extend([f, g]);
+                        (g, e, made)
+                    }
+                };
                 if made {
                     result.edges.push(e);
                 }
                 result.faces.extend([f, g]);
-                split.extend([f, g]);
                 continue;
             }
             ring.clear();
@@ -224,11 +233,15 @@ pub fn triangulate(mesh: &mut Mesh, faces: &[FaceId]) -> Result<Selection, OpErr
         Ok(())
     };
     let outcome = split_all();
-    mesh.refresh_normals_of(&split);
+    mesh.refresh_normals_of(&unrefreshed);
     outcome?;
     result.normalize();
     Ok(result)
 }
+
+/// A quad's corner loops and, when its corners decide it, its diagonal
+/// (along 0–2 or not) with its two pieces' normals.
+type QuadPlan = ([LoopId; 4], Option<(bool, [DVec3; 2])>);
 
 /// Triangles of a ring of `points` as ascending index triples. Listing a
 /// triangle's corners in ring order winds it like the ring (each triangle
