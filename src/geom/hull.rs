@@ -885,6 +885,90 @@ mod tests {
         assert_same_faces(faces, &hull);
     }
 
+    /// The hull's faces as rings of positions, each from its least
+    /// position (compared as coordinate triples) and sorted: comparable
+    /// between inputs that hold the same points in another order, whatever
+    /// copy of a repeated point a hull keeps.
+    fn faces_by_position(points: &[DVec3], hull: &Hull) -> Vec<Vec<[f64; 3]>> {
+        let key = |p: DVec3| p.to_array();
+        let mut faces: Vec<Vec<[f64; 3]>> = hull
+            .faces()
+            .map(|f| {
+                let mut ring: Vec<[f64; 3]> = f.iter().map(|&i| key(points[i])).collect();
+                let least = (0..ring.len())
+                    .min_by(|&a, &b| ring[a].partial_cmp(&ring[b]).unwrap())
+                    .unwrap();
+                ring.rotate_left(least);
+                ring
+            })
+            .collect();
+        faces.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        faces
+    }
+
+    #[test]
+    fn lattice_subsets_in_any_order_give_one_closed_convex_hull() {
+        // Small sets drawn from a 4 × 4 × 4 lattice, with repeats: nearly
+        // every face is coplanar with other points and every edge has
+        // points along it, so Quickhull's visibility tests keep falling to
+        // the exact predicate, its orphans are handed to new faces that
+        // share planes, and coplanar faces merge. Each hull must contain
+        // every point, be closed with V − E + F = 2, and come out the
+        // same, face for face, from the points shuffled. (Deciding an
+        // undecided float test either way without the exact predicate
+        // fails here; the tests above do not notice.)
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let mut hulls = 0;
+        for set in 0..300 {
+            let n = 5 + next(60) as usize;
+            // Every other set in tenths, which binary cannot hold: points
+            // that are coplanar in decimal are a rounding off it, and only
+            // the exact predicate tells which side.
+            let unit = if set % 2 == 0 { 1.0 } else { 0.1 };
+            let mut coordinate = || next(4) as f64 * unit;
+            let points: Vec<DVec3> = (0..n)
+                .map(|_| DVec3::new(coordinate(), coordinate(), coordinate()))
+                .collect();
+            let Ok(hull) = convex_hull(&points, true) else {
+                continue;
+            };
+            hulls += 1;
+            for face in hull.faces() {
+                let [a, b, c] = [face[0], face[1], face[2]].map(|i| points[i]);
+                assert!(points.iter().all(|&q| orient3d(a, b, c, q) >= 0.0));
+            }
+            let mut edges: Vec<(usize, usize)> = hull
+                .faces()
+                .flat_map(|f| (0..f.len()).map(move |k| (f[k], f[(k + 1) % f.len()])))
+                .collect();
+            edges.sort_unstable();
+            let uses = edges.len();
+            edges.dedup();
+            assert_eq!(edges.len(), uses, "a directed edge used twice");
+            assert!(edges
+                .iter()
+                .all(|&(s, t)| edges.binary_search(&(t, s)).is_ok()));
+            let (v, e) = (hull.vertices.len() as i64, (edges.len() / 2) as i64);
+            assert_eq!(v - e + hull.face_count() as i64, 2);
+            let mut shuffled = points.clone();
+            for k in (1..shuffled.len()).rev() {
+                shuffled.swap(k, next(k as u64 + 1) as usize);
+            }
+            let other = convex_hull(&shuffled, true).expect("the same points");
+            assert_eq!(
+                faces_by_position(&shuffled, &other),
+                faces_by_position(&points, &hull)
+            );
+        }
+        assert!(hulls > 250, "only {hulls} of 300 sets had a solid hull");
+    }
+
     #[test]
     fn degenerate_inputs_are_named() {
         let p = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
