@@ -752,6 +752,24 @@ mod tests {
         assert!(tris.faces().all(|f| f.len() == 3));
     }
 
+    /// Closed (every directed edge once, its reverse once) and a sphere
+    /// (V − E + F = 2).
+    fn assert_closed_sphere(hull: &Hull) {
+        let mut edges: Vec<(usize, usize)> = hull
+            .faces()
+            .flat_map(|f| (0..f.len()).map(move |k| (f[k], f[(k + 1) % f.len()])))
+            .collect();
+        edges.sort_unstable();
+        let uses = edges.len();
+        edges.dedup();
+        assert_eq!(edges.len(), uses, "a directed edge used twice");
+        assert!(edges
+            .iter()
+            .all(|&(s, t)| edges.binary_search(&(t, s)).is_ok()));
+        let (v, e) = (hull.vertices.len() as i64, (edges.len() / 2) as i64);
+        assert_eq!(v - e + hull.face_count() as i64, 2);
+    }
+
     #[test]
     fn every_face_sees_every_point_on_its_inner_side() {
         // Points on and in a sphere, duplicates and collinear runs mixed in.
@@ -782,22 +800,7 @@ mod tests {
                 );
             }
         }
-        // Closed: every directed edge once, its reverse once.
-        let mut edges: Vec<(usize, usize)> = hull
-            .faces()
-            .flat_map(|f| (0..f.len()).map(move |k| (f[k], f[(k + 1) % f.len()])))
-            .collect();
-        edges.sort_unstable();
-        let before = edges.len();
-        edges.dedup();
-        assert_eq!(edges.len(), before);
-        assert!(edges
-            .iter()
-            .all(|&(s, t)| edges.binary_search(&(t, s)).is_ok()));
-        // Euler: V − E + F = 2.
-        let v = hull.vertices.len() as i64;
-        let e = (edges.len() / 2) as i64;
-        assert_eq!(v - e + hull.face_count() as i64, 2);
+        assert_closed_sphere(&hull);
     }
 
     #[test]
@@ -943,19 +946,7 @@ mod tests {
                 let [a, b, c] = [face[0], face[1], face[2]].map(|i| points[i]);
                 assert!(points.iter().all(|&q| orient3d(a, b, c, q) >= 0.0));
             }
-            let mut edges: Vec<(usize, usize)> = hull
-                .faces()
-                .flat_map(|f| (0..f.len()).map(move |k| (f[k], f[(k + 1) % f.len()])))
-                .collect();
-            edges.sort_unstable();
-            let uses = edges.len();
-            edges.dedup();
-            assert_eq!(edges.len(), uses, "a directed edge used twice");
-            assert!(edges
-                .iter()
-                .all(|&(s, t)| edges.binary_search(&(t, s)).is_ok()));
-            let (v, e) = (hull.vertices.len() as i64, (edges.len() / 2) as i64);
-            assert_eq!(v - e + hull.face_count() as i64, 2);
+            assert_closed_sphere(&hull);
             let mut shuffled = points.clone();
             for k in (1..shuffled.len()).rev() {
                 shuffled.swap(k, next(k as u64 + 1) as usize);
