@@ -613,13 +613,25 @@ mod tests {
         // Enough quads for the parallel decision and normal passes to
         // split into several tasks, bumpy so the diagonals differ, with a
         // hexagon now and then between them: every record, id and normal
-        // bit the same on one thread and on four.
+        // bit the same on one thread and on four. The corners carry
+        // arbitrary low bits, so a normal computed from another corner
+        // order differs in its last bits and fails `validate`.
         let mut m = Mesh::new();
         let n = 60;
-        let height = |i: usize, j: usize| ((i * 7 + j * 13) % 5) as f64 * 0.1;
+        // Heights that make either diagonal the shorter one, and small
+        // offsets across: arbitrary low bits on every axis.
+        let jitter =
+            |i: usize, j: usize, a: f64, b: f64| (i as f64 * a + j as f64 * b).fract() * 1e-3;
+        let point = |i: usize, j: usize| {
+            DVec3::new(
+                i as f64 + jitter(i, j, 0.377, 0.613),
+                j as f64 + jitter(i, j, 0.719, 0.283),
+                (i as f64 * 0.541 + j as f64 * 0.877).fract() * 0.4,
+            )
+        };
         let v: Vec<VertId> = (0..=n)
             .flat_map(|j| (0..=n).map(move |i| (i, j)))
-            .map(|(i, j)| m.make_vert(DVec3::new(i as f64, j as f64, height(i, j))))
+            .map(|(i, j)| m.make_vert(point(i, j)))
             .collect();
         let at = |i: usize, j: usize| v[j * (n + 1) + i];
         let mut i = 0;
