@@ -77,6 +77,42 @@ impl<T> Arena<T> {
         self.live += self.slots.len() - before;
     }
 
+    /// Calls `update` on the live element at each of `ids` (whose slots,
+    /// `index(id)`, strictly ascend), in parallel: the slots are cut into
+    /// disjoint runs, each with the ids it holds, so each element is
+    /// written where it lies, with no buffer of results to gather and
+    /// copy back.
+    pub fn par_update_ascending<I, F>(
+        &mut self,
+        ids: &[I],
+        index: impl Fn(&I) -> u32 + Sync,
+        update: F,
+    ) where
+        I: Sync,
+        F: Fn(&mut T) + Sync,
+        T: Send,
+    {
+        /// Ids per parallel task.
+        const RUN: usize = 2048;
+        debug_assert!(ids.windows(2).all(|w| index(&w[0]) < index(&w[1])));
+        let mut runs = Vec::with_capacity(ids.len().div_ceil(RUN));
+        let mut rest: &mut [Option<T>] = &mut self.slots;
+        let mut base = 0;
+        for run in ids.chunks(RUN) {
+            let end = index(&run[run.len() - 1]) as usize + 1;
+            let (here, after) = std::mem::take(&mut rest).split_at_mut(end - base);
+            runs.push((base, here, run));
+            rest = after;
+            base = end;
+        }
+        runs.into_par_iter().for_each(|(base, slots, run)| {
+            for id in run {
+                let slot = index(id) as usize - base;
+                update(slots[slot].as_mut().expect("live slot"));
+            }
+        });
+    }
+
     pub fn remove(&mut self, index: u32) -> Option<T> {
         let value = self.slots.get_mut(index as usize)?.take()?;
         self.free.push(Reverse(index));
@@ -163,5 +199,35 @@ mod tests {
         assert!(arena.remove(9).is_none());
         assert!(arena.remove(1).is_some());
         assert!(arena.remove(1).is_none(), "double free must be refused");
+    }
+
+    #[test]
+    fn par_update_ascending_writes_exactly_the_listed_slots() {
+        // Runs of 2,048 ids cut the slots at ids that are not run ends;
+        // sparse, dense, first-slot and last-slot lists, and no list.
+        let n = 20_000u32;
+        let lists: Vec<Vec<u32>> = vec![
+            (0..n).collect(),
+            (0..n).filter(|i| i % 7 == 3).collect(),
+            vec![0, n - 1],
+            (0..n).filter(|i| i.wrapping_mul(2654435761) >> 29 == 0).collect(),
+            Vec::new(),
+        ];
+        for list in lists {
+            let mut arena = Arena::default();
+            for i in 0..n {
+                arena.insert(u64::from(i));
+            }
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(2)
+                .build()
+                .unwrap();
+            pool.install(|| arena.par_update_ascending(&list, |&i| i, |v| *v += 1_000_000));
+            for i in 0..n {
+                let bumped = list.binary_search(&i).is_ok();
+                let expected = u64::from(i) + if bumped { 1_000_000 } else { 0 };
+                assert_eq!(arena.get(i), Some(&expected), "slot {i}");
+            }
+        }
     }
 }

@@ -1009,7 +1009,14 @@ impl Mesh {
         shared: SharedFaces,
     ) -> Result<VertId, KernelError> {
         self.check_two_verts(keep, gone)?;
-        if let Some(e) = self.find_edge(keep, gone) {
+        // Only `gone`'s cycle is searched: the merge below walks all of it
+        // anyway, where `find_edge`'s lockstep also reads `keep`'s edges,
+        // scattered (issue 38: a soup weld glues a million vertices of
+        // degree 2 onto survivors of degree 6 and more).
+        let joining = self
+            .vert_edges(gone)
+            .find(|&e| self.edge_other_vert(e, gone) == keep);
+        if let Some(e) = joining {
             let position = self.position(keep);
             return self.collapse_edge_with(e, keep, position, normals);
         }

@@ -495,3 +495,49 @@ fn split_quad_writes_what_split_face_starting_at_writes() {
         }
     }
 }
+
+#[test]
+fn refresh_normals_of_writes_each_face_its_own_normal_in_any_list_order() {
+    // 60 × 60 quads (several parallel runs), corners moved without a
+    // refresh; then the faces refreshed from an ascending list (written in
+    // place) or a shuffled one (gathered first). Both must give each
+    // listed face the normal its corners give, bit for bit, and leave the
+    // others alone.
+    let bits = |n: DVec3| n.to_array().map(f64::to_bits);
+    for ascending in [true, false] {
+        let mut m = crate::kernel::ops::extrude::tests::grid(60, 60, 0.5);
+        let verts: Vec<VertId> = m.vert_ids().collect();
+        for (k, &v) in verts.iter().enumerate() {
+            let p = m.position(v);
+            let lift = ((k * 2654435761) % 1000) as f64 * 1e-3;
+            m.place(v, p + DVec3::new(0.0, 0.0, lift));
+        }
+        let faces: Vec<FaceId> = m.face_ids().collect();
+        let before: Vec<DVec3> = faces.iter().map(|&f| m.face_normal(f)).collect();
+        let mut listed: Vec<FaceId> = faces
+            .iter()
+            .copied()
+            .filter(|f| f.index() % 3 != 1)
+            .collect();
+        if !ascending {
+            listed.reverse();
+            listed.swap(0, 7);
+        }
+        m.refresh_normals_of(&listed);
+        for (&f, &old) in faces.iter().zip(&before) {
+            let expected = if f.index() % 3 != 1 {
+                m.compute_face_normal(f)
+            } else {
+                old
+            };
+            assert_eq!(
+                bits(m.face_normal(f)),
+                bits(expected),
+                "face {f} ({ascending})"
+            );
+        }
+        assert!(listed
+            .iter()
+            .any(|&f| bits(m.face_normal(f)) != bits(DVec3::Z)));
+    }
+}

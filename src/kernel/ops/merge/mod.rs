@@ -57,7 +57,7 @@ use crate::geom::UnionFind;
 
 use super::{canonical, into_canonical, OpError, Selection};
 use crate::kernel::attrs::AttrValue;
-use crate::kernel::ids::{Domain, FaceId, VertId};
+use crate::kernel::ids::{Domain, EdgeId, FaceId, VertId};
 use crate::kernel::mesh::Mesh;
 
 /// What [`merge_by_distance`] did.

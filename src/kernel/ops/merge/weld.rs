@@ -121,8 +121,15 @@ pub(in crate::kernel::ops) fn weld_gone(
     let is_affected = |g: FaceId| affected.binary_search(&g).is_ok();
     let has_twin = |mesh: &Mesh, ring: &mut Vec<VertId>, f: FaceId| {
         ring.clear();
-        ring.extend(mesh.face_verts(f));
-        twin(mesh, ring, |g| g != f && (!is_affected(g) || g < f)).is_some()
+        let mut first_side = None;
+        for l in mesh.face_loops(f) {
+            first_side.get_or_insert(mesh.loop_edge(l));
+            ring.push(mesh.loop_vert(l));
+        }
+        // The face's first side is the edge from ring[0] to ring[1]: read
+        // from its loop, not searched for in the disk cycles.
+        let side = first_side.expect("a face has corners");
+        twin_on(mesh, side, ring, |g| g != f && (!is_affected(g) || g < f)).is_some()
     };
     let view: &Mesh = mesh;
     let maybe_doubled: Vec<FaceId> = clean
@@ -205,8 +212,17 @@ pub(super) fn twin(
     ring: &[VertId],
     accept: impl Fn(FaceId) -> bool,
 ) -> Option<FaceId> {
+    twin_on(mesh, mesh.find_edge(ring[0], ring[1])?, ring, accept)
+}
+
+/// [`twin`] given `e`, the edge from `ring[0]` to `ring[1]`.
+fn twin_on(
+    mesh: &Mesh,
+    e: EdgeId,
+    ring: &[VertId],
+    accept: impl Fn(FaceId) -> bool,
+) -> Option<FaceId> {
     const PAIRWISE: usize = 8;
-    let e = mesh.find_edge(ring[0], ring[1])?;
     let sorted = (ring.len() > PAIRWISE).then(|| {
         let mut key = ring.to_vec();
         key.sort_unstable();
