@@ -210,7 +210,9 @@ mod tests {
             (0..n).collect(),
             (0..n).filter(|i| i % 7 == 3).collect(),
             vec![0, n - 1],
-            (0..n).filter(|i| i.wrapping_mul(2654435761) >> 29 == 0).collect(),
+            (0..n)
+                .filter(|i| i.wrapping_mul(2654435761) >> 29 == 0)
+                .collect(),
             Vec::new(),
         ];
         for list in lists {

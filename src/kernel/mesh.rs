@@ -641,25 +641,26 @@ impl Mesh {
 /// The unit Newell normal of the `len` corners from loop `first` on
 /// ([`Mesh::compute_face_normal`]), from the arenas alone, so a pass can
 /// write face records while it reads loops and vertices.
+#[inline]
 fn ring_normal(loops: &Arena<Loop>, verts: &Arena<Vert>, first: LoopId, len: u32) -> DVec3 {
-    let corners = (0..len).scan(first, |l, _| {
+    let len = len as usize;
+    let mut l = first;
+    let mut next_corner = || {
         let corner = loops.get(l.raw()).expect("dead loop id");
-        *l = corner.next;
-        Some(
-            verts
-                .get(corner.vert.raw())
-                .expect("dead vertex id")
-                .position,
-        )
-    });
-    if len as usize <= SMALL_FACE {
+        l = corner.next;
+        verts
+            .get(corner.vert.raw())
+            .expect("dead vertex id")
+            .position
+    };
+    if len <= SMALL_FACE {
         let mut points = [DVec3::ZERO; SMALL_FACE];
-        for (point, p) in points.iter_mut().zip(corners) {
-            *point = p;
+        for point in &mut points[..len] {
+            *point = next_corner();
         }
-        return normal_of(&points[..len as usize]);
+        return normal_of(&points[..len]);
     }
-    normal_of(&corners.collect::<Vec<_>>())
+    normal_of(&(0..len).map(|_| next_corner()).collect::<Vec<_>>())
 }
 
 /// Faces up to this many corners gather their points on the stack.
