@@ -26,7 +26,7 @@ use glam::DVec3;
 use thiserror::Error;
 
 use super::ids::{Domain, EdgeId, FaceId, LoopId, VertId};
-use super::mesh::{normal_of, DiskLink, Edge, Face, Loop, Mesh, Occupied, Vert, SMALL_FACE};
+use super::mesh::{normal_of, normal_of_corners, DiskLink, Edge, Face, Loop, Mesh, Occupied, Vert};
 
 /// Why an Euler operator refused its input. The mesh is unchanged.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -490,15 +490,7 @@ impl Mesh {
     /// The unit normal of a new face's ring (zero when degenerate), as
     /// [`Mesh::compute_face_normal`] would compute it from the face.
     fn ring_normal(&self, ring: &[VertId]) -> DVec3 {
-        let mut small = [DVec3::ZERO; SMALL_FACE];
-        if ring.len() <= SMALL_FACE {
-            for (point, &v) in small.iter_mut().zip(ring) {
-                *point = self.position(v);
-            }
-            return normal_of(&small[..ring.len()]);
-        }
-        let points: Vec<DVec3> = ring.iter().map(|&v| self.position(v)).collect();
-        normal_of(&points)
+        normal_of_corners(ring.len(), ring.iter().map(|&v| self.position(v)))
     }
 
     /// MakeFace on a ring of edges given in ring order (each edge shares a

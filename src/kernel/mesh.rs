@@ -279,35 +279,28 @@ impl Mesh {
     /// Recomputes the stored normals of `faces` (live), computed in
     /// parallel: each is a pure function of its corners.
     pub(in crate::kernel) fn refresh_normals_of(&mut self, faces: &[FaceId]) {
-        use rayon::prelude::*;
-        if faces.windows(2).all(|w| w[0] < w[1]) {
-            // Ascending (nearly always): each record written in place, in
-            // parallel, with no buffer of normals (issue 38: a weld
-            // refreshes a million faces, 24 MB touched for nothing).
-            let Mesh {
-                verts,
-                loops,
-                faces: records,
-                ..
-            } = self;
-            records.par_update_ascending(
-                faces,
-                |f| f.raw(),
-                |face| {
-                    face.normal = ring_normal(loops, verts, face.first_loop, face.len);
-                },
-            );
-            return;
+        if !faces.windows(2).all(|w| w[0] < w[1]) {
+            // Rare (triangulate's undecided quads): a sorted copy of the
+            // ids, 4 bytes a face, rather than a second mechanism.
+            let mut sorted = faces.to_vec();
+            sorted.sort_unstable();
+            sorted.dedup();
+            return self.refresh_normals_of(&sorted);
         }
-        let view: &Mesh = self;
-        let normals: Vec<DVec3> = faces
-            .par_iter()
-            .with_min_len(1024)
-            .map(|&f| view.compute_face_normal(f))
-            .collect();
-        for (&f, normal) in faces.iter().zip(normals) {
-            self.faces.get_mut(f.raw()).expect("dead face id").normal = normal;
-        }
+        // Each record written in place, in parallel, with no buffer of
+        // normals (issue 38: a weld refreshes a million faces, 24 MB
+        // touched for nothing).
+        let Mesh {
+            verts,
+            loops,
+            faces: records,
+            ..
+        } = self;
+        records.par_update_ascending(
+            faces,
+            |f| f.raw(),
+            |face| face.normal = loops_normal(loops, verts, face.first_loop, face.len),
+        );
     }
 
     /// Recomputes every stored face normal.
@@ -342,7 +335,7 @@ impl Mesh {
         // face takes its ring's: `ring_normal`): small faces (nearly all)
         // gather their corners on the stack.
         let face = self.face(f);
-        ring_normal(&self.loops, &self.verts, face.first_loop, face.len)
+        loops_normal(&self.loops, &self.verts, face.first_loop, face.len)
     }
 
     pub fn face_positions(&self, f: FaceId) -> Vec<DVec3> {
@@ -641,30 +634,40 @@ impl Mesh {
 /// The unit Newell normal of the `len` corners from loop `first` on
 /// ([`Mesh::compute_face_normal`]), from the arenas alone, so a pass can
 /// write face records while it reads loops and vertices.
-#[inline]
-fn ring_normal(loops: &Arena<Loop>, verts: &Arena<Vert>, first: LoopId, len: u32) -> DVec3 {
-    let len = len as usize;
-    let mut l = first;
-    let mut next_corner = || {
+fn loops_normal(loops: &Arena<Loop>, verts: &Arena<Vert>, first: LoopId, len: u32) -> DVec3 {
+    let corners = (0..len).scan(first, |l, _| {
         let corner = loops.get(l.raw()).expect("dead loop id");
-        l = corner.next;
-        verts
-            .get(corner.vert.raw())
-            .expect("dead vertex id")
-            .position
-    };
+        *l = corner.next;
+        Some(
+            verts
+                .get(corner.vert.raw())
+                .expect("dead vertex id")
+                .position,
+        )
+    });
+    normal_of_corners(len as usize, corners)
+}
+
+/// [`normal_of`] the `len` points `corners` gives, gathered on the stack
+/// when they are few (nearly every face): what a face's stored normal and
+/// a new face's ring normal are both computed by.
+#[inline]
+pub(in crate::kernel) fn normal_of_corners(
+    len: usize,
+    corners: impl Iterator<Item = DVec3>,
+) -> DVec3 {
     if len <= SMALL_FACE {
         let mut points = [DVec3::ZERO; SMALL_FACE];
-        for point in &mut points[..len] {
-            *point = next_corner();
+        for (point, p) in points.iter_mut().zip(corners) {
+            *point = p;
         }
         return normal_of(&points[..len]);
     }
-    normal_of(&(0..len).map(|_| next_corner()).collect::<Vec<_>>())
+    normal_of(&corners.collect::<Vec<_>>())
 }
 
 /// Faces up to this many corners gather their points on the stack.
-pub(in crate::kernel) const SMALL_FACE: usize = 8;
+const SMALL_FACE: usize = 8;
 
 /// The unit normal (Newell's, zero when degenerate) of a face's corners in
 /// order: triangles and quads (nearly all faces) unrolled.

@@ -121,14 +121,11 @@ pub(in crate::kernel::ops) fn weld_gone(
     let is_affected = |g: FaceId| affected.binary_search(&g).is_ok();
     let has_twin = |mesh: &Mesh, ring: &mut Vec<VertId>, f: FaceId| {
         ring.clear();
-        let mut first_side = None;
-        for l in mesh.face_loops(f) {
-            first_side.get_or_insert(mesh.loop_edge(l));
-            ring.push(mesh.loop_vert(l));
-        }
+        ring.extend(mesh.face_verts(f));
         // The face's first side is the edge from ring[0] to ring[1]: read
-        // from its loop, not searched for in the disk cycles.
-        let side = first_side.expect("a face has corners");
+        // from its first loop, not searched for in the disk cycles.
+        let first = mesh.face_loops(f).next().expect("a face has corners");
+        let side = mesh.loop_edge(first);
         twin_on(mesh, side, ring, |g| g != f && (!is_affected(g) || g < f)).is_some()
     };
     let view: &Mesh = mesh;
